@@ -1,0 +1,36 @@
+# The README's two commands: `make demo` (main job) and `make test` (whole suite).
+# Both create the virtual environment they need, idempotently: torch first (the local
+# CPU wheel; a loose torch requirement would pull GBs of CUDA packages), then the package.
+SHELL := /bin/bash
+PYTHON ?= python3
+VENV ?= .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed-$(shell cat pyproject.toml | sha1sum | cut -c1-12)
+export OMP_NUM_THREADS ?= 1
+# hanabi-learning-environment builds with CMake and needs this under CMake 4.
+export CMAKE_POLICY_VERSION_MINIMUM := 3.5
+export PIP_DISABLE_PIP_VERSION_CHECK := 1
+
+.PHONY: demo test venv bench clean
+
+demo: $(STAMP)
+	$(BIN)/rllib-conv demo
+
+test: $(STAMP)
+	$(BIN)/python -m pytest -q
+
+venv: $(STAMP)
+
+bench: $(STAMP)
+	$(BIN)/python benchmarks/env_throughput.py
+
+$(STAMP): pyproject.toml
+	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install -q --upgrade pip wheel setuptools
+	$(BIN)/python -m pip install -q torch==2.13.0
+	$(BIN)/python -m pip install -q -e ".[test]"
+	rm -f $(VENV)/.installed-*
+	touch $@
+
+clean:
+	rm -rf $(VENV) build *.egg-info

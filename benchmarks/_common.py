@@ -1,0 +1,46 @@
+"""Shared by the benchmark scripts: machine description and result files."""
+
+from __future__ import annotations
+
+import datetime as dt
+import json
+import os
+import platform
+import sys
+from pathlib import Path
+from typing import Any
+
+RESULTS = Path(__file__).resolve().parent / "results"
+
+
+def machine() -> dict[str, Any]:
+    """Describe the machine a benchmark ran on (CPU model, cores, Python, key packages)."""
+    cpu = platform.processor() or ""
+    try:
+        cpu = next(line.split(":", 1)[1].strip() for line in open("/proc/cpuinfo") if line.startswith("model name"))
+    except (OSError, StopIteration):
+        pass
+    versions = {}
+    for pkg in ("ray", "torch", "pettingzoo", "gymnasium", "numpy"):
+        try:
+            versions[pkg] = __import__(pkg).__version__
+        except Exception:  # a missing package just goes unreported
+            versions[pkg] = None
+    return {
+        "cpu": cpu,
+        "cores": os.cpu_count(),
+        "python": platform.python_version(),
+        "platform": platform.platform(),
+        "omp_num_threads": os.environ.get("OMP_NUM_THREADS"),
+        "packages": versions,
+    }
+
+
+def write_result(name: str, data: dict[str, Any]) -> Path:
+    """Write `data` with the machine and the producing command line to `results/<name>.json`."""
+    command = "OMP_NUM_THREADS=1 python " + " ".join(sys.argv)
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    path = RESULTS / f"{name}.json"
+    record = {"benchmark": name, "date": dt.datetime.now().isoformat(timespec="seconds"), "command": command, "machine": machine(), **data}
+    path.write_text(json.dumps(record, indent=2) + "\n")
+    return path

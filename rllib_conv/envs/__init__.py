@@ -1,0 +1,18 @@
+"""The paper's games as PettingZoo envs, behind a name registry.
+
+`make(name, **config)` builds a registered env, `names()` lists them, and
+`register(name, factory)` adds a user's own PettingZoo env (AEC or parallel) under a
+name that configs and the CLI then accept. `to_rllib(name)` exposes any registered
+env to RLlib/Tune as a `MultiAgentEnv`.
+"""
+
+from rllib_conv.envs.bandit import CollaborativeBanditEnv
+from rllib_conv.envs.blocks import BlockPlacingEnv
+from rllib_conv.envs.hanabi import HanabiEnv
+from rllib_conv.envs.registry import make, names, register
+
+register("bandit", CollaborativeBanditEnv)
+register("blocks", BlockPlacingEnv)
+register("hanabi", HanabiEnv)
+
+__all__ = ["make", "names", "register", "CollaborativeBanditEnv", "BlockPlacingEnv", "HanabiEnv"]

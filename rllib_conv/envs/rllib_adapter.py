@@ -1,0 +1,154 @@
+"""Expose any registered PettingZoo env (AEC or parallel) to RLlib as a `MultiAgentEnv`.
+
+Observations become `{"observations": float32 vector, "action_mask": float32 vector}`,
+the keys RLlib's action-masking modules read. The mask comes from the PettingZoo
+observation's `action_mask`, else from `info["action_mask"]`, else all ones.
+
+AEC games are stepped one agent at a time: each RLlib step carries the observation of
+the agent to move next, and an agent's reward is the AEC cumulative reward since its
+own last move, so nothing is lost when the other player's move ends the game.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from pettingzoo.utils.env import AECEnv, ParallelEnv
+from ray.rllib.env.multi_agent_env import MultiAgentEnv
+from ray.tune.registry import register_env
+
+from rllib_conv.envs import registry
+from rllib_conv.envs.spaces import MASK_KEY, OBS_KEY
+
+RLLIB_OBS_KEY = "observations"
+RLLIB_MASK_KEY = "action_mask"
+RLLIB_ENV_PREFIX = "rllib_conv/"
+
+
+def _inner_obs_space(space: gym.Space) -> gym.Space:
+    if isinstance(space, gym.spaces.Dict) and OBS_KEY in space.spaces:
+        return space.spaces[OBS_KEY]
+    return space
+
+
+class PettingZooMultiAgentEnv(MultiAgentEnv):
+    """A PettingZoo env seen through RLlib's `MultiAgentEnv` API with Dict masked observations."""
+
+    def __init__(self, env: AECEnv | ParallelEnv) -> None:
+        super().__init__()
+        self.env = env
+        self.is_aec = isinstance(env, AECEnv)
+        if not self.is_aec and not isinstance(env, ParallelEnv):
+            raise TypeError(f"expected a PettingZoo AECEnv or ParallelEnv, got {type(env).__name__}")
+        self.possible_agents = list(env.possible_agents)
+        self.agents = list(self.possible_agents)
+        self._flatten: dict[str, gym.Space | None] = {}
+        obs_spaces, act_spaces = {}, {}
+        for agent in self.possible_agents:
+            act = env.action_space(agent)
+            if not isinstance(act, gym.spaces.Discrete):
+                raise ValueError(f"agent {agent!r}: only Discrete action spaces are supported, got {act}")
+            inner = _inner_obs_space(env.observation_space(agent))
+            if isinstance(inner, gym.spaces.Box):
+                self._flatten[agent] = None
+                box = gym.spaces.Box(inner.low.astype(np.float32), inner.high.astype(np.float32), dtype=np.float32)
+            else:
+                # Discrete/MultiDiscrete/... observations are flattened (one-hot) for the MLPs.
+                self._flatten[agent] = inner
+                box = gym.spaces.flatten_space(inner)
+                box = gym.spaces.Box(box.low.astype(np.float32), box.high.astype(np.float32), dtype=np.float32)
+            obs_spaces[agent] = gym.spaces.Dict(
+                {
+                    RLLIB_OBS_KEY: box,
+                    RLLIB_MASK_KEY: gym.spaces.Box(0.0, 1.0, shape=(int(act.n),), dtype=np.float32),
+                }
+            )
+            act_spaces[agent] = act
+        self.observation_spaces = obs_spaces
+        self.action_spaces = act_spaces
+        self.observation_space = gym.spaces.Dict(obs_spaces)
+        self.action_space = gym.spaces.Dict(act_spaces)
+
+    def _convert(self, agent: str, obs: Any, info: dict | None) -> dict[str, np.ndarray]:
+        if isinstance(obs, dict) and OBS_KEY in obs:
+            vec, mask = obs[OBS_KEY], obs.get(MASK_KEY)
+        else:
+            vec, mask = obs, None
+        if mask is None and info:
+            mask = info.get("action_mask")
+        if self._flatten[agent] is not None:
+            vec = gym.spaces.flatten(self._flatten[agent], vec)
+        n = self.action_spaces[agent].n
+        mask = np.ones(n, dtype=np.float32) if mask is None else np.asarray(mask, dtype=np.float32)
+        return {RLLIB_OBS_KEY: np.asarray(vec, dtype=np.float32), RLLIB_MASK_KEY: mask}
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
+        if self.is_aec:
+            self.env.reset(seed=seed, options=options)
+            agent = self.env.agent_selection
+            info = self.env.infos.get(agent, {})
+            self.agents = list(self.env.agents)
+            return {agent: self._convert(agent, self.env.observe(agent), info)}, {agent: info}
+        obs, infos = self.env.reset(seed=seed, options=options)
+        self.agents = list(self.env.agents)
+        return {a: self._convert(a, o, infos.get(a)) for a, o in obs.items()}, infos
+
+    def step(self, action_dict: dict[str, Any]) -> tuple[dict, dict, dict, dict, dict]:
+        if not self.is_aec:
+            obs, rewards, terms, truncs, infos = self.env.step(action_dict)
+            obs = {a: self._convert(a, o, infos.get(a)) for a, o in obs.items()}
+            return obs, rewards, *self._mark_all_done(dict(terms), dict(truncs)), infos
+        agent = self.env.agent_selection
+        if agent not in action_dict:
+            raise ValueError(f"it is {agent}'s turn but the action dict has only {sorted(action_dict)}")
+        self.env.step(action_dict[agent])
+        obs, rewards, terms, truncs, infos = {}, {}, {}, {}, {}
+        # Collect the next mover's observation; finished agents get their final
+        # observation and reward and are stepped out with None (PettingZoo's dead step).
+        while self.env.agents:
+            o, r, term, trunc, info = self.env.last()
+            a = self.env.agent_selection
+            obs[a] = self._convert(a, o, info)
+            rewards[a] = rewards.get(a, 0.0) + float(r)
+            terms[a], truncs[a], infos[a] = term, trunc, info
+            if term or trunc:
+                self.env.step(None)
+            else:
+                break
+        return obs, rewards, *self._mark_all_done(terms, truncs), infos
+
+    def _mark_all_done(self, terms: dict, truncs: dict) -> tuple[dict, dict]:
+        """Set RLlib's `__all__` flags: the episode ends when PettingZoo has no agents left.
+
+        `agents` keeps the agents that just received their final observation, since
+        RLlib expects every agent in a step's result to be listed.
+        """
+        self.agents = list(self.env.agents) or [a for a in self.possible_agents if a in terms]
+        done = not self.env.agents
+        terms["__all__"] = done and all(terms.values())
+        truncs["__all__"] = done and not terms["__all__"]
+        return terms, truncs
+
+    def render(self) -> Any:
+        return self.env.render()
+
+    def close(self) -> None:
+        self.env.close()
+
+
+def to_rllib(name: str) -> str:
+    """Register the PettingZoo env `name` with Tune and return the env id for RLlib configs.
+
+    Use it as `config.environment(to_rllib("bandit"), env_config={"symmetric": 2})`;
+    `env_config` is passed to `rllib_conv.envs.make(name, **env_config)` on every runner.
+    """
+    factory = registry.factory(name)
+    env_id = RLLIB_ENV_PREFIX + name
+
+    def creator(env_config: dict) -> PettingZooMultiAgentEnv:
+        return PettingZooMultiAgentEnv(factory(**dict(env_config)))
+
+    register_env(env_id, creator)
+    return env_id

@@ -1,0 +1,98 @@
+"""Bandit partners: a fixed arm per context (a convention), hand-designed or drawn at random."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from rllib_conv.envs.bandit import PAPER_ARMS, PAPER_CONTEXTS, good_arms
+from rllib_conv.envs.spaces import check_choice
+from rllib_conv.partners.base import Partner
+from rllib_conv.partners.kinds import register_kind
+
+HAND_DESIGNED_PER_SPLIT = 4
+
+
+@register_kind
+class BanditConventionPartner(Partner):
+    """Pulls `arms[context]` in every context (the context is the one-hot observation)."""
+
+    kind = "bandit_convention"
+
+    def __init__(self, name: str, arms: list[int]) -> None:
+        super().__init__(name)
+        if not arms or any(int(a) != a or a < 0 for a in arms):
+            raise ValueError(f"arms must be a non-empty list of arm indices >= 0, got {arms!r}")
+        self.arms = [int(a) for a in arms]
+        self._arms = np.asarray(self.arms, dtype=np.int64)
+
+    def act_batch(self, observations: np.ndarray, action_masks: np.ndarray) -> np.ndarray:
+        contexts = np.asarray(observations).argmax(axis=1)
+        if contexts.size and contexts.max() >= len(self.arms):
+            raise ValueError(f"{self.name}: an observation names context {contexts.max()}, but this partner knows {len(self.arms)} contexts")
+        actions = self._arms[contexts]
+        # A fixed partner has no fallback: playing a masked or missing arm would hide a mismatched env.
+        masks = np.asarray(action_masks)
+        if (actions >= masks.shape[1]).any() or not masks[np.arange(len(actions)), actions].all():
+            raise ValueError(f"{self.name}: its arms {self.arms} are not all legal in this game (mask {masks[0].tolist()})")
+        return actions
+
+    def act(self, observation: np.ndarray, action_mask: np.ndarray) -> int:
+        return int(self.act_batch(np.asarray(observation)[None], np.asarray(action_mask)[None])[0])
+
+    def params(self) -> dict[str, Any]:
+        return {"arms": list(self.arms)}
+
+
+def hand_designed_codes(symmetric: int, split: str) -> list[tuple[int, ...]]:
+    """Return the 4 hand-designed conventions of a split: per symmetric context, 0 = low arm, 1 = high.
+
+    Train partner k picks, in symmetric context j, bit 1 of k, bit 0 of k, or their XOR
+    (cycling), so every context is split 2/2 between its two good arms, as the paper
+    requires ("uniform over the optimal actions"). Test partners are the complements:
+    also balanced, and disjoint from train whenever 2**symmetric allows (symmetric >= 3).
+    """
+    check_choice("symmetric", symmetric, range(PAPER_CONTEXTS + 1))
+    check_choice("split", split, ["train", "test"])
+    columns = [lambda k: (k >> 1) & 1, lambda k: k & 1, lambda k: ((k >> 1) ^ k) & 1]
+    codes = [tuple(columns[j % 3](k) for j in range(symmetric)) for k in range(HAND_DESIGNED_PER_SPLIT)]
+    if split == "test":
+        codes = [tuple(1 - b for b in code) for code in codes]
+    return codes
+
+
+def convention_arms(code: tuple[int, ...], new_task: bool = False) -> list[int]:
+    """Return the paper-bandit arm per context of a partner with convention `code`.
+
+    Symmetric contexts `c < len(code)` pull `c` or `c + 4`; rule contexts pull the
+    task's only good arm, which moves to `c + 4` on the new task. The convention is
+    kept across tasks, as the paper's hand-designed partners do.
+    """
+    symmetric = len(code)
+    return [
+        c + PAPER_CONTEXTS * code[c] if c < symmetric else c + (PAPER_CONTEXTS if new_task else 0)
+        for c in range(PAPER_CONTEXTS)
+    ]
+
+
+def hand_designed_partners(symmetric: int, split: str, new_task: bool = False) -> list[BanditConventionPartner]:
+    """Return the paper's 4 hand-designed partners of `split` for the bandit with `symmetric` contexts."""
+    return [
+        BanditConventionPartner(f"hand-{split}-{k}", convention_arms(code, new_task))
+        for k, code in enumerate(hand_designed_codes(symmetric, split))
+    ]
+
+
+def random_convention_partners(prizes: np.ndarray, n: int, seed: int, prefix: str = "rand") -> list[BanditConventionPartner]:
+    """Return `n` partners, each pulling a uniformly drawn good arm per context (seeded)."""
+    if n < 1:
+        raise ValueError(f"n must be >= 1, got {n}")
+    rng = np.random.default_rng(seed)
+    good = good_arms(np.asarray(prizes))
+    return [
+        BanditConventionPartner(f"{prefix}-{i}", [int(rng.choice(arms)) for arms in good]) for i in range(n)
+    ]
+
+
+assert PAPER_ARMS == 2 * PAPER_CONTEXTS  # convention_arms relies on the high arm being c + 4

@@ -1,0 +1,90 @@
+"""Blocks partners: P2 reads where red lands on move 1 and answers with a fixed permutation.
+
+A permutation partner with `perm` places blue on `perm[c]` if P1's first move put red
+on cell `c`, and passes otherwise. The paper's 9 hand-designed partners are the 9
+derangements of the 4 cells (no cell maps to itself), 3 for training and 6 for test.
+`BlocksLeader` is the matching P1: it signals the blue goal through the permutation,
+then moves red to its own goal; paired with its permutation partner it scores 20.
+"""
+
+from __future__ import annotations
+
+from itertools import permutations
+from typing import Any
+
+import numpy as np
+
+from rllib_conv.envs.blocks import BLUE, HIDDEN, NUM_CELLS, PASS, RED, block_cell, decode_observation
+from rllib_conv.partners.base import Partner
+from rllib_conv.partners.kinds import register_kind
+
+TRAIN_PERMUTATIONS: list[tuple[int, ...]] = [(1, 3, 0, 2), (2, 0, 3, 1), (3, 2, 1, 0)]
+
+
+def derangements(n: int = NUM_CELLS) -> list[tuple[int, ...]]:
+    """Return the permutations of range(n) with no fixed point, in lexicographic order."""
+    return [p for p in permutations(range(n)) if all(p[i] != i for i in range(n))]
+
+
+TEST_PERMUTATIONS: list[tuple[int, ...]] = [p for p in derangements() if p not in TRAIN_PERMUTATIONS]
+
+
+def _check_permutation(perm: list[int]) -> tuple[int, ...]:
+    perm = tuple(int(c) for c in perm)
+    if sorted(perm) != list(range(NUM_CELLS)):
+        raise ValueError(f"perm must be a permutation of 0..{NUM_CELLS - 1}, got {list(perm)}")
+    return perm
+
+
+@register_kind
+class PermutationPartner(Partner):
+    """P2 (blue): on its first move, places blue on `perm[red's cell]`; otherwise passes."""
+
+    kind = "blocks_permutation"
+
+    def __init__(self, name: str, perm: list[int]) -> None:
+        super().__init__(name)
+        self.perm = _check_permutation(perm)
+
+    def act(self, observation: np.ndarray, action_mask: np.ndarray) -> int:
+        obs = decode_observation(observation)
+        red = block_cell(obs["grid"], RED)
+        if obs["move"] == 1 and red is not None:
+            return self.perm[red]
+        return PASS
+
+    def params(self) -> dict[str, Any]:
+        return {"perm": list(self.perm)}
+
+
+@register_kind
+class BlocksLeader(Partner):
+    """P1 (red) that knows the partner's `perm`: the best response to `PermutationPartner(perm)`.
+
+    Move 0: put red on the cell the partner reads as the blue goal; move 2: put red on
+    its goal (on the new task, the first goal-empty cell); move 4: pass.
+    """
+
+    kind = "blocks_leader"
+
+    def __init__(self, name: str, perm: list[int], new_task: bool = False) -> None:
+        super().__init__(name)
+        self.perm = _check_permutation(perm)
+        self.new_task = bool(new_task)
+
+    def act(self, observation: np.ndarray, action_mask: np.ndarray) -> int:
+        obs = decode_observation(observation)
+        goal = obs["goal"]
+        if HIDDEN in goal:
+            raise ValueError("BlocksLeader plays P1 and needs to see the goal")
+        blue_goal, red_goal = block_cell(goal, BLUE), block_cell(goal, RED)
+        if obs["move"] == 0:
+            return self.perm.index(blue_goal)
+        if obs["move"] == 2:
+            if self.new_task:
+                return next(c for c in range(NUM_CELLS) if c not in (red_goal, blue_goal))
+            return red_goal
+        return PASS
+
+    def params(self) -> dict[str, Any]:
+        return {"perm": list(self.perm), "new_task": self.new_task}

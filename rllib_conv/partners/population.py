@@ -1,0 +1,153 @@
+"""Partner populations: named sets of fixed partners with a train/test split.
+
+A population is stored as a small JSON manifest (YAML is read too):
+
+    {"name": "bandit-s2-hand", "env": "bandit", "env_config": {"symmetric": 2},
+     "partner_agent": "player_1", "description": "...",
+     "partners": [{"name": "hand-train-0", "kind": "bandit_convention",
+                   "params": {"arms": [0, 1, 2, 3]}, "split": "train",
+                   "checkpoint": null, "seed": null, "score": null}, ...]}
+
+`checkpoint`, `seed` and `score` are filled in for partners trained by self-play.
+Built-in populations are addressable by name (`names()`); `get(name_or_path)` also
+loads a manifest from disk.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from pathlib import Path
+from typing import Any, Callable, Literal
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from rllib_conv.envs import names as env_names
+from rllib_conv.partners.base import Partner
+from rllib_conv.partners.kinds import partner_from_spec
+
+Split = Literal["train", "test"]
+
+
+class PartnerEntry(BaseModel):
+    """One partner of a population: how to rebuild it, its split, and its provenance."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    name: str
+    kind: str
+    params: dict[str, Any] = Field(default_factory=dict)
+    split: Split
+    checkpoint: str | None = None
+    seed: int | None = None
+    score: float | None = None
+
+    def build(self) -> Partner:
+        """Return the `Partner` this entry describes."""
+        return partner_from_spec({"name": self.name, "kind": self.kind, "params": self.params})
+
+
+class Population(BaseModel):
+    """A named set of partners for one game configuration, split into train and test."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    name: str
+    env: str
+    env_config: dict[str, Any] = Field(default_factory=dict)
+    partner_agent: str = "player_1"
+    description: str = ""
+    partners: list[PartnerEntry]
+
+    def entries(self, split: Split | None = None) -> list[PartnerEntry]:
+        """Return the entries of `split` (all entries if None), in manifest order."""
+        return [e for e in self.partners if split is None or e.split == split]
+
+    def build(self, split: Split | None = None) -> list[Partner]:
+        """Return the `Partner` objects of `split` (all if None)."""
+        return [e.build() for e in self.entries(split)]
+
+    def validate_partners(self) -> None:
+        """Raise ValueError unless the env is registered, names are unique and every partner builds."""
+        if self.env not in env_names():
+            raise ValueError(f"population {self.name!r}: unknown env {self.env!r}; registered: {', '.join(env_names())}")
+        seen: set[str] = set()
+        for e in self.partners:
+            if e.name in seen:
+                raise ValueError(f"population {self.name!r}: duplicate partner name {e.name!r}")
+            seen.add(e.name)
+            e.build()
+
+    def save(self, path: str | Path) -> Path:
+        """Write the manifest as JSON atomically (a crash never leaves a half-written file)."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+        with os.fdopen(fd, "w") as f:
+            json.dump(self.model_dump(), f, indent=2)
+            f.write("\n")
+        os.replace(tmp, path)
+        return path
+
+    @classmethod
+    def load(cls, path: str | Path) -> "Population":
+        """Read and validate a JSON or YAML manifest; ValueError names the file and the bad key."""
+        path = Path(path)
+        if not path.is_file():
+            raise ValueError(f"population manifest {str(path)!r} does not exist")
+        try:
+            data = yaml.safe_load(path.read_text())  # YAML is a superset of JSON
+        except yaml.YAMLError as exc:
+            raise ValueError(f"population manifest {str(path)!r} is not valid JSON/YAML: {exc}") from None
+        try:
+            pop = cls.model_validate(data)
+        except ValidationError as exc:
+            raise ValueError(f"population manifest {str(path)!r}: {_describe(exc)}") from None
+        pop.validate_partners()
+        return pop
+
+
+def _describe(exc: ValidationError) -> str:
+    """One line per problem: the dotted key path and what was wrong."""
+    return "; ".join(f"{'.'.join(str(p) for p in err['loc']) or '<root>'}: {err['msg']}" for err in exc.errors())
+
+
+_BUILTINS: dict[str, Callable[[], Population]] = {}
+
+
+def register_builtin(name: str, builder: Callable[[], Population]) -> None:
+    """Make `builder()` addressable as the population `name`."""
+    _BUILTINS[name] = builder
+
+
+def names() -> list[str]:
+    """Return the built-in population names, in registration order."""
+    return list(_BUILTINS)
+
+
+def get(name_or_path: str | Path) -> Population:
+    """Return the built-in population `name_or_path`, or load the manifest at that path."""
+    if str(name_or_path) in _BUILTINS:
+        return _BUILTINS[str(name_or_path)]()
+    path = Path(name_or_path)
+    if path.suffix in (".json", ".yaml", ".yml") or path.exists():
+        return Population.load(path)
+    raise ValueError(f"unknown population {str(name_or_path)!r}: not a built-in ({', '.join(names())}) nor a manifest file")
+
+
+def from_partners(
+    name: str,
+    env: str,
+    env_config: dict[str, Any],
+    train: list[Partner],
+    test: list[Partner],
+    description: str = "",
+    partner_agent: str = "player_1",
+) -> Population:
+    """Build a population manifest from partner objects."""
+    entries = [PartnerEntry(**p.to_spec(), split=split) for split, group in (("train", train), ("test", test)) for p in group]
+    return Population(
+        name=name, env=env, env_config=env_config, partner_agent=partner_agent, description=description, partners=entries
+    )

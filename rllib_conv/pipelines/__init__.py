@@ -1,0 +1,1 @@
+"""Runnable pipelines: each is a config plus one entry point the CLI calls."""
