@@ -1,0 +1,198 @@
+"""Typed experiment configs: one YAML file per experiment, validated on load.
+
+Any value may be a Tune grid, written `{grid_search: [a, b, ...]}` in YAML. Every
+combination is validated before anything runs; errors name the key path
+(`ppo.minibatch_size: Input should be greater than 0`). Unset game-dependent fields
+(layer size, rollout length, minibatch, epochs, timesteps) take the paper's values for
+the game (`GAME_DEFAULTS`).
+"""
+
+from __future__ import annotations
+
+import copy
+import itertools
+from pathlib import Path
+from typing import Any, Literal
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, PositiveFloat, PositiveInt, ValidationError, field_validator, model_validator
+
+from rllib_conv.envs import names as env_names
+
+Method = Literal["modular", "agg", "no_task_logits", "oracle"]
+GRID_KEY = "grid_search"
+
+# The paper's Tables 2-4 and the original code: layer size, rollout steps per partner,
+# minibatch, epochs, training env steps.
+GAME_DEFAULTS: dict[str, dict[str, int]] = {
+    "bandit": {"hidden": 30, "rollout_per_partner": 64, "minibatch_size": 16, "num_epochs": 20, "timesteps": 10_000},
+    "blocks": {"hidden": 80, "rollout_per_partner": 640, "minibatch_size": 160, "num_epochs": 5, "timesteps": 1_000_000},
+    "hanabi": {"hidden": 500, "rollout_per_partner": 640, "minibatch_size": 160, "num_epochs": 5, "timesteps": 500_000},
+}
+FALLBACK_DEFAULTS = {"hidden": 64, "rollout_per_partner": 256, "minibatch_size": 64, "num_epochs": 10, "timesteps": 100_000}
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", validate_assignment=True)
+
+
+class ModelSettings(_Strict):
+    """Network sizes: every layer of both modules has `hidden` units; z has `z_dim` (default hidden)."""
+
+    hidden: PositiveInt | None = None
+    z_dim: PositiveInt | None = None
+
+
+class PPOSettings(_Strict):
+    """PPO hyperparameters (defaults: the paper's code, Stable-Baselines3 PPO)."""
+
+    lr: PositiveFloat = 3e-4
+    gamma: float = Field(0.99, ge=0.0, le=1.0)
+    gae_lambda: float = Field(0.95, ge=0.0, le=1.0)
+    clip_param: PositiveFloat = 0.2
+    entropy_coeff: float = Field(0.0, ge=0.0)
+    vf_loss_coeff: float = Field(0.5, ge=0.0)
+    grad_clip: PositiveFloat | None = 0.5
+    adam_eps: PositiveFloat = 1e-5
+    rollout_per_partner: PositiveInt | None = None
+    minibatch_size: PositiveInt | None = None
+    num_epochs: PositiveInt | None = None
+
+
+class RunSettings(_Strict):
+    """How long and on what: env steps, env runners, vectorised sub-envs, checkpoints."""
+
+    timesteps: PositiveInt | None = None
+    num_env_runners: int = Field(0, ge=0)
+    num_envs_per_env_runner: PositiveInt = 8
+    checkpoint_every: PositiveInt = 10
+    keep_checkpoints: PositiveInt = 2
+    eval_episodes: PositiveInt = 200
+
+
+class ExperimentConfig(_Strict):
+    """One ego-training experiment: game, partners, method, regulariser, sizes, PPO, run."""
+
+    name: str = "experiment"
+    env: str | None = None
+    env_config: dict[str, Any] = Field(default_factory=dict)
+    population: str
+    method: Method = "modular"
+    lam: float = Field(0.0, ge=0.0)
+    freeze: list[str] = Field(default_factory=list)
+    seed: int = 0
+    model: ModelSettings = Field(default_factory=ModelSettings)
+    ppo: PPOSettings = Field(default_factory=PPOSettings)
+    run: RunSettings = Field(default_factory=RunSettings)
+
+    @field_validator("name")
+    @classmethod
+    def _name_is_a_folder_name(cls, v: str) -> str:
+        if not v or any(c in v for c in '/\\<>:"|?* '):
+            raise ValueError(f"must be a non-empty folder name without spaces or /\\<>:\"|?*, got {v!r}")
+        return v
+
+    @field_validator("env")
+    @classmethod
+    def _env_is_registered(cls, v: str | None) -> str | None:
+        if v is not None and v not in env_names():
+            raise ValueError(f"unknown env {v!r}; registered: {', '.join(env_names())}")
+        return v
+
+    @model_validator(mode="after")
+    def _consistent(self) -> "ExperimentConfig":
+        if self.method in ("no_task_logits", "oracle") and self.lam > 0:
+            raise ValueError(f"lam must be 0 for method {self.method!r} (it has no learned task logits to regularise)")
+        return self
+
+    def resolve(self, game: str) -> "ExperimentConfig":
+        """Return a copy for `game` with every unset game-dependent field set to the paper's value."""
+        d = GAME_DEFAULTS.get(game, FALLBACK_DEFAULTS)
+        out = self.model_copy(deep=True)
+        out.env = game
+        out.model.hidden = out.model.hidden or d["hidden"]
+        for key in ("rollout_per_partner", "minibatch_size", "num_epochs"):
+            if getattr(out.ppo, key) is None:
+                setattr(out.ppo, key, d[key])
+        out.run.timesteps = out.run.timesteps or d["timesteps"]
+        return out
+
+
+def _format(exc: ValidationError) -> str:
+    return "; ".join(f"{'.'.join(str(p) for p in e['loc']) or '<root>'}: {e['msg']}" for e in exc.errors())
+
+
+def _is_grid(node: Any) -> bool:
+    return isinstance(node, dict) and set(node) == {GRID_KEY}
+
+
+def _grid_paths(node: Any, path: tuple = ()) -> list[tuple[tuple, list]]:
+    """Return (key path, values) of every `{grid_search: [...]}` in a nested dict."""
+    if _is_grid(node):
+        values = node[GRID_KEY]
+        if not isinstance(values, list) or not values:
+            raise ValueError(f"{'.'.join(map(str, path))}: grid_search needs a non-empty list, got {values!r}")
+        return [(path, values)]
+    if isinstance(node, dict):
+        return [g for k, v in node.items() for g in _grid_paths(v, (*path, k))]
+    return []
+
+
+def _set_path(node: dict, path: tuple, value: Any) -> None:
+    for key in path[:-1]:
+        node = node.setdefault(key, {})
+    node[path[-1]] = value
+
+
+def expand_grid(raw: dict[str, Any]) -> list[dict[str, Any]]:
+    """Return every combination of the grid values in `raw` (one dict if there is no grid)."""
+    grids = _grid_paths(raw)
+    variants = []
+    for combo in itertools.product(*(values for _, values in grids)):
+        variant = copy.deepcopy(raw)
+        for (path, _), value in zip(grids, combo):
+            _set_path(variant, path, value)
+        variants.append(variant)
+    return variants
+
+
+def validate(raw: dict[str, Any], source: str = "config") -> list[ExperimentConfig]:
+    """Validate every grid combination of `raw`; return them. ValueError names the bad key."""
+    if not isinstance(raw, dict):
+        raise ValueError(f"{source}: expected a mapping of settings, got {type(raw).__name__}")
+    out = []
+    for variant in expand_grid(raw):
+        try:
+            out.append(ExperimentConfig.model_validate(variant))
+        except ValidationError as exc:
+            raise ValueError(f"{source}: {_format(exc)}") from None
+    return out
+
+
+def parse_override(text: str) -> tuple[tuple[str, ...], Any]:
+    """Parse `--set key.path=value` (value in YAML syntax) into (path, value)."""
+    if "=" not in text:
+        raise ValueError(f"--set expects key=value, got {text!r}")
+    key, value = text.split("=", 1)
+    if not key or any(not part for part in key.split(".")):
+        raise ValueError(f"--set expects a dotted key like ppo.lr, got {key!r}")
+    return tuple(key.split(".")), yaml.safe_load(value)
+
+
+def load(path: str | Path, overrides: list[str] = ()) -> dict[str, Any]:
+    """Read an experiment YAML, apply `--set` overrides, validate every grid combination.
+
+    Returns the raw dict (grids kept as `{grid_search: [...]}`) for Tune.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"config file {str(path)!r} does not exist")
+    try:
+        raw = yaml.safe_load(path.read_text()) or {}
+    except yaml.YAMLError as exc:
+        raise ValueError(f"config file {str(path)!r} is not valid YAML: {exc}") from None
+    for text in overrides:
+        key, value = parse_override(text)
+        _set_path(raw, key, value)
+    validate(raw, source=str(path))
+    return raw

@@ -1,0 +1,93 @@
+"""`MarginalPPOLearner`: PPO plus the paper's marginal regulariser, with freezing that freezes.
+
+Per minibatch, over the states of every ego head's rows (PPO's bootstrap padding rows
+are dropped by `DropBootstrapRows` before minibatching), the regulariser is
+
+    D = mean_s sum_a | softmax(task logits)(a|s) - mean_i softmax(task + head_i logits)(a|s) |
+
+over all ego heads i (one per training partner), with no gradient stopping. The loss
+adds `lam * D`; `lam = 0` leaves PPO's loss untouched (D is still logged, computed
+without gradients). Settings come from `config.learners(learner_config_dict=...)`:
+
+- `lam` (float, default 0): the regulariser weight.
+- `freeze` (list): module IDs, or the groups `"task"` and `"heads"`, whose weights must
+  not change: their parameters get `requires_grad=False` and no optimizer.
+- `adam_eps` (float, default 1e-5, the paper's code): Adam's epsilon.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import torch
+from ray.rllib.algorithms.ppo.torch.ppo_torch_learner import PPOTorchLearner
+from ray.rllib.core import ALL_MODULES
+
+from rllib_conv.learners.drop_bootstrap_rows import DropBootstrapRows
+from rllib_conv.modules.multi import ALL_HEAD_LOGITS, TASK_ID
+from rllib_conv.modules.partner_head import TASK_LOGITS, PartnerHeadModule
+
+MARGINAL_REG_KEY = "marginal_reg"
+
+
+def marginal_distance(task_logits: torch.Tensor, head_logits: list[torch.Tensor]) -> torch.Tensor:
+    """Return mean over rows of sum_a |softmax(task) - mean_i softmax(head_i)|; logits are [B, A]."""
+    mean_policy = torch.stack([torch.softmax(h, dim=-1) for h in head_logits]).mean(dim=0)
+    return (torch.softmax(task_logits, dim=-1) - mean_policy).abs().sum(dim=-1).mean()
+
+
+class MarginalPPOLearner(PPOTorchLearner):
+    """PPO learner for `ConventionMultiRLModule`s: regulariser, real freezing, Adam eps."""
+
+    def build(self) -> None:
+        super().build()
+        # After PPO's GAE piece: advantages need the bootstrap rows, the losses do not.
+        if self._learner_connector is not None:
+            self._learner_connector.append(DropBootstrapRows())
+
+    @property
+    def lam(self) -> float:
+        """The regulariser weight from `learner_config_dict["lam"]`."""
+        return float(self.config.learner_config_dict.get("lam", 0.0))
+
+    def frozen_module_ids(self) -> set[str]:
+        """Module IDs whose weights must not change (expands the groups "task" and "heads")."""
+        frozen: set[str] = set()
+        for item in self.config.learner_config_dict.get("freeze", []):
+            if item == "task":
+                frozen.add(TASK_ID)
+            elif item == "heads":
+                frozen.update(mid for mid, m in self.module._rl_modules.items() if isinstance(m, PartnerHeadModule))
+            else:
+                frozen.add(item)
+        return frozen
+
+    def configure_optimizers_for_module(self, module_id: str, config: Any = None) -> None:
+        module = self.module[module_id]
+        if module_id in self.frozen_module_ids():
+            for p in module.parameters():
+                p.requires_grad_(False)
+            return
+        params = self.get_parameters(module)
+        if not params:
+            return
+        eps = float(self.config.learner_config_dict.get("adam_eps", 1e-5))
+        self.register_optimizer(
+            module_id=module_id,
+            # foreach: one fused kernel per step instead of a Python loop over tensors.
+            optimizer=torch.optim.Adam(params, eps=eps, foreach=True),
+            params=params,
+            lr_or_lr_schedule=config.lr,
+        )
+
+    def compute_losses(self, *, fwd_out: dict[str, Any], batch: dict[str, Any]) -> dict[str, Any]:
+        shared = fwd_out.pop(TASK_ID, None)  # the task module has no batch and no loss of its own
+        losses = super().compute_losses(fwd_out=fwd_out, batch=batch)
+        if shared is None:
+            return losses
+        with torch.set_grad_enabled(self.lam > 0 and torch.is_grad_enabled()):
+            reg = marginal_distance(shared[TASK_LOGITS], list(shared[ALL_HEAD_LOGITS]))
+        self.metrics.log_value((ALL_MODULES, MARGINAL_REG_KEY), reg.detach(), reduce="mean")
+        if self.lam > 0:
+            losses[MARGINAL_REG_KEY] = self.lam * reg
+        return losses

@@ -1,0 +1,47 @@
+"""Agent -> module mapping: every episode is played with one partner, partners in turn."""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+from typing import Any
+
+from rllib_conv.modules.multi import AGG_HEAD_ID, ego_id, partner_id
+
+_CACHE = 4096
+
+
+class PartnerMapping:
+    """Policy-mapping function pairing each episode with one partner, round robin.
+
+    The ego agent maps to its head for that partner (or to the single `ego` head when
+    `shared_head`, i.e. BaselineAgg) and the partner agent to the partner's module.
+    Episodes are assigned in the order an env runner first sees them, so episodes are
+    spread evenly over partners and the assignment is reproducible.
+    """
+
+    def __init__(self, partners: list[str], ego_agent: str, partner_agent: str, shared_head: bool = False) -> None:
+        if not partners:
+            raise ValueError("PartnerMapping needs at least one partner")
+        self.partners = list(partners)
+        self.ego_agent = ego_agent
+        self.partner_agent = partner_agent
+        self.shared_head = shared_head
+        self._next = 0
+        self._assigned: OrderedDict[str, int] = OrderedDict()
+
+    def partner_for(self, episode_id: str) -> str:
+        """Return the partner assigned to `episode_id`, assigning the next one on first sight."""
+        if episode_id not in self._assigned:
+            self._assigned[episode_id] = self._next % len(self.partners)
+            self._next += 1
+            if len(self._assigned) > _CACHE:
+                self._assigned.popitem(last=False)
+        return self.partners[self._assigned[episode_id]]
+
+    def __call__(self, agent_id: str, episode: Any, **kwargs: Any) -> str:
+        name = self.partner_for(episode.id_)
+        if agent_id == self.ego_agent:
+            return AGG_HEAD_ID if self.shared_head else ego_id(name)
+        if agent_id == self.partner_agent:
+            return partner_id(name)
+        raise ValueError(f"agent {agent_id!r} is neither the ego ({self.ego_agent!r}) nor the partner ({self.partner_agent!r})")

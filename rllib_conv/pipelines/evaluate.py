@@ -1,0 +1,111 @@
+"""Evaluate a trained ego: per-partner returns (exact for one-step games) and marginal distances."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import torch
+
+from rllib_conv import envs
+from rllib_conv.envs.bandit import CollaborativeBanditEnv
+from rllib_conv.envs.oracles import oracle_for
+from rllib_conv.modules.multi import ConventionMultiRLModule
+from rllib_conv.partners.base import Partner
+from rllib_conv.partners.play import play_episodes
+
+
+def _tensors(obs: np.ndarray, mask: np.ndarray | None) -> tuple[torch.Tensor, torch.Tensor | None]:
+    return torch.as_tensor(np.asarray(obs), dtype=torch.float32), None if mask is None else torch.as_tensor(np.asarray(mask), dtype=torch.float32)
+
+
+@torch.no_grad()
+def head_probs(module: ConventionMultiRLModule, head_id: str, obs: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
+    """Return the ego's action probabilities [B, A] with head `head_id` on observations [B, obs_dim]."""
+    o, m = _tensors(obs, mask)
+    z, task_logits = module.task.policy(o, m)
+    return torch.softmax(module[head_id].logits(z, task_logits, m), dim=-1).numpy()
+
+
+@torch.no_grad()
+def task_probs(module: ConventionMultiRLModule, obs: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
+    """Return the task module's action distribution [B, A] (its estimate of the marginals)."""
+    o, m = _tensors(obs, mask)
+    return torch.softmax(module.task.policy(o, m).logits, dim=-1).numpy()
+
+
+class EgoHeadPartner(Partner):
+    """A trained ego head as a `Partner`, sampling its actions (seeded), for `play_episodes`."""
+
+    kind = "ego_head"
+
+    def __init__(self, module: ConventionMultiRLModule, head_id: str, seed: int = 0) -> None:
+        super().__init__(head_id)
+        self.module, self.head_id = module, head_id
+        self._rng = np.random.default_rng(seed)
+
+    def seed(self, seed: int | None) -> None:
+        self._rng = np.random.default_rng(seed)
+
+    def act(self, observation: np.ndarray, action_mask: np.ndarray) -> int:
+        p = head_probs(self.module, self.head_id, observation[None], action_mask[None])[0]
+        return int(self._rng.choice(len(p), p=p / p.sum()))
+
+    def params(self) -> dict[str, Any]:
+        return {"head_id": self.head_id}
+
+
+def bandit_exact_return(module: ConventionMultiRLModule, head_id: str, env: CollaborativeBanditEnv, partner: Partner) -> float:
+    """Return the exact expected return of the ego head with a fixed bandit partner (contexts uniform)."""
+    contexts = np.eye(env.num_contexts, dtype=np.float32)
+    mask = np.ones((env.num_contexts, env.num_arms), dtype=np.int8)
+    probs = head_probs(module, head_id, contexts, mask)
+    arms = partner.act_batch(contexts, mask)
+    rows = np.arange(env.num_contexts)
+    return float(np.mean(probs[rows, arms] * env.prizes[rows, arms]))
+
+
+def ego_return(
+    module: ConventionMultiRLModule,
+    head_id: str,
+    env_name: str,
+    env_config: dict[str, Any],
+    partner: Partner,
+    ego_agent: str,
+    partner_agent: str,
+    episodes: int = 200,
+    seed: int = 0,
+) -> dict[str, float]:
+    """Return the ego head's mean return with `partner` and its standard error.
+
+    One-step bandits are scored exactly from the two policies (`exact`); every game is
+    also scored by `episodes` sampled episodes (`mean`, `stderr`).
+    """
+    env = envs.make(env_name, **env_config)
+    scores = play_episodes(env, {ego_agent: EgoHeadPartner(module, head_id, seed), partner_agent: partner}, episodes, seed)
+    out = {"mean": float(scores.mean()), "stderr": float(scores.std(ddof=1) / np.sqrt(len(scores))) if len(scores) > 1 else 0.0}
+    if isinstance(env, CollaborativeBanditEnv):
+        out["exact"] = bandit_exact_return(module, head_id, env, partner)
+    return out
+
+
+def bandit_states(env_config: dict[str, Any]) -> tuple[np.ndarray, np.ndarray]:
+    """Every bandit state (one-hot contexts) with all-legal masks."""
+    env = CollaborativeBanditEnv(**env_config)
+    return np.eye(env.num_contexts, dtype=np.float32), np.ones((env.num_contexts, env.num_arms), dtype=np.int8)
+
+
+def marginal_distances(
+    module: ConventionMultiRLModule, env_name: str, env_config: dict[str, Any], obs: np.ndarray, mask: np.ndarray
+) -> dict[str, float]:
+    """L1 distance between the task module's distribution and the true marginals on `obs`.
+
+    `paper`: averaged over states with more than one optimal action and at least one
+    non-optimal legal action (the paper's marginals figure); `all`: over every state.
+    """
+    optimal = oracle_for(env_name, env_config)(obs) * mask
+    truth = optimal / optimal.sum(axis=1, keepdims=True)
+    dist = np.abs(task_probs(module, obs, mask) - truth).sum(axis=1)
+    n_opt = optimal.sum(axis=1)
+    ambiguous = (n_opt > 1) & (n_opt < mask.sum(axis=1))
+    return {"paper": float(dist[ambiguous].mean()) if ambiguous.any() else float("nan"), "all": float(dist.mean())}

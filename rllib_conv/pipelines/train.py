@@ -1,0 +1,169 @@
+"""Train the modular ego through Ray Tune: one experiment config (grids allowed) -> one Tune run.
+
+Each trial is an `EgoTrainable` wrapping an RLlib PPO algorithm built from the trial's
+`ExperimentConfig`. The trial folder holds Tune's `params.json`/`progress.csv`
+(per-iteration metrics, per-partner returns included), our resolved `config.yaml`,
+checkpoints, and `eval.json` (final per-partner returns and marginal distances).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import ray
+import yaml
+from ray import tune
+from ray.tune import Callback
+from ray.tune.execution.placement_groups import PlacementGroupFactory
+
+from rllib_conv.config import GRID_KEY, ExperimentConfig, validate
+from rllib_conv.envs.oracles import has_oracle
+from rllib_conv.learners.marginal_learner import MARGINAL_REG_KEY
+from rllib_conv.modules.multi import AGG_HEAD_ID, ego_id, partner_id
+from rllib_conv.pipelines.algorithm import EgoSetup, build_ppo_config, resolve
+from rllib_conv.pipelines.evaluate import bandit_states, ego_return, marginal_distances
+
+EVAL_FILE = "eval.json"
+CONFIG_FILE = "config.yaml"
+
+
+def head_for(setup: EgoSetup, partner_name: str) -> str:
+    """The ego head that plays with `partner_name` (the shared head for BaselineAgg)."""
+    return AGG_HEAD_ID if setup.exp.method == "agg" else ego_id(partner_name)
+
+
+def summarize(result: dict[str, Any], setup: EgoSetup) -> dict[str, Any]:
+    """Reduce RLlib's result dict to the metrics we report: steps, per-partner returns, regulariser."""
+    runners = result.get("env_runners", {})
+    module_returns = runners.get("module_episode_returns_mean", {})
+    per_partner = {
+        f"return/{e.name}": float(module_returns[partner_id(e.name)]) for e in setup.train if partner_id(e.name) in module_returns
+    }
+    learners = result.get("learners", {})
+    return {
+        "env_steps": int(runners.get("num_env_steps_sampled_lifetime", 0)),
+        "return_mean": float(np.mean(list(per_partner.values()))) if per_partner else math.nan,
+        **per_partner,
+        MARGINAL_REG_KEY: float(learners.get("__all_modules__", {}).get(MARGINAL_REG_KEY, math.nan)),
+    }
+
+
+def evaluate(module: Any, setup: EgoSetup, episodes: int, seed: int = 0) -> dict[str, Any]:
+    """Per training partner: sampled mean return (and exact, on the bandit); task-module marginal distance."""
+    out: dict[str, Any] = {}
+    game = setup.population.env
+    for e in setup.train:
+        r = ego_return(module, head_for(setup, e.name), game, setup.env_config, e.build(), setup.ego_agent, setup.partner_agent, episodes, seed)
+        for key, value in r.items():
+            out[f"eval/{key}/{e.name}"] = value
+    if game == "bandit" and has_oracle(game):
+        obs, mask = bandit_states(setup.env_config)
+        for key, value in marginal_distances(module, game, setup.env_config, obs, mask).items():
+            out[f"eval/marginal_distance/{key}"] = value
+    return out
+
+
+class EgoTrainable(tune.Trainable):
+    """One ego-training trial: builds the PPO algorithm, trains it, checkpoints and evaluates it."""
+
+    def setup(self, config: dict[str, Any]) -> None:
+        import torch
+
+        torch.set_num_threads(1)
+        self.ego = resolve(ExperimentConfig.model_validate(config))
+        self.algo = build_ppo_config(self.ego).build_algo()
+        Path(self.logdir, CONFIG_FILE).write_text(yaml.safe_dump(self.ego.exp.model_dump(), sort_keys=False))
+        self._start = time.perf_counter()
+
+    def step(self) -> dict[str, Any]:
+        metrics = summarize(self.algo.train(), self.ego)
+        metrics["done"] = metrics["env_steps"] >= self.ego.exp.run.timesteps
+        if metrics["done"]:
+            final = evaluate(self.algo.env_runner.module, self.ego, self.ego.exp.run.eval_episodes, self.ego.exp.seed)
+            final["wall_s"] = time.perf_counter() - self._start
+            Path(self.logdir, EVAL_FILE).write_text(json.dumps(final, indent=2) + "\n")
+            metrics.update(final)
+        return metrics
+
+    def save_checkpoint(self, checkpoint_dir: str) -> None:
+        self.algo.save_to_path(checkpoint_dir)
+
+    def load_checkpoint(self, checkpoint: str) -> None:
+        self.algo.restore_from_path(checkpoint)
+
+    def cleanup(self) -> None:
+        self.algo.stop()
+
+    @classmethod
+    def default_resource_request(cls, config: dict[str, Any]) -> PlacementGroupFactory:
+        runners = int(config.get("run", {}).get("num_env_runners", 0) or 0)
+        return PlacementGroupFactory([{"CPU": 1}] + [{"CPU": 1}] * runners)
+
+
+class ProgressLine(Callback):
+    """Print one line per trial iteration: steps, mean and worst partner return, regulariser."""
+
+    def on_trial_result(self, iteration: int, trials: list, trial: Any, result: dict[str, Any], **info: Any) -> None:
+        returns = [v for k, v in result.items() if k.startswith("return/")]
+        worst = f" min {min(returns):.3f}" if returns else ""
+        print(
+            f"[{trial.trial_id}] iter {result.get('training_iteration', 0):4d}  steps {result.get('env_steps', 0):8d}  "
+            f"return {result.get('return_mean', math.nan):.3f}{worst}  reg {result.get(MARGINAL_REG_KEY, math.nan):.4f}  "
+            f"{result.get('time_total_s', 0.0):7.1f}s",
+            flush=True,
+        )
+
+
+def to_param_space(raw: Any) -> Any:
+    """Replace `{grid_search: [...]}` nodes of a raw config by `tune.grid_search`."""
+    if isinstance(raw, dict):
+        if set(raw) == {GRID_KEY}:
+            return tune.grid_search(raw[GRID_KEY])
+        return {k: to_param_space(v) for k, v in raw.items()}
+    return raw
+
+
+def init_ray(address: str | None) -> None:
+    """Connect to `address` (or $RAY_ADDRESS); without one start a local embedded Ray."""
+    if ray.is_initialized():
+        return
+    address = address or os.environ.get("RAY_ADDRESS")
+    env = {"env_vars": {"OMP_NUM_THREADS": "1"}}
+    if address:
+        ray.init(address=address, runtime_env=env, log_to_driver=False)
+    else:
+        ray.init(include_dashboard=False, runtime_env=env, log_to_driver=False)
+
+
+def run(raw: dict[str, Any], storage: str | Path = "runs", address: str | None = None) -> tune.ResultGrid:
+    """Run the experiment `raw` (already validated by `config.load`) through Tune; return its results.
+
+    Results go to `storage/<name>/`, with the experiment's config in `experiment.yaml`.
+    """
+    first = validate(raw)[0]
+    storage = Path(storage).resolve()
+    (storage / first.name).mkdir(parents=True, exist_ok=True)
+    (storage / first.name / "experiment.yaml").write_text(yaml.safe_dump(raw, sort_keys=False))
+    init_ray(address)
+    tuner = tune.Tuner(
+        EgoTrainable,
+        param_space=to_param_space(raw),
+        run_config=tune.RunConfig(
+            name=first.name,
+            storage_path=str(storage),
+            callbacks=[ProgressLine()],
+            verbose=0,
+            checkpoint_config=tune.CheckpointConfig(
+                num_to_keep=first.run.keep_checkpoints,
+                checkpoint_frequency=first.run.checkpoint_every,
+                checkpoint_at_end=True,
+            ),
+        ),
+    )
+    return tuner.fit()
