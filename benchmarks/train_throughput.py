@@ -5,7 +5,8 @@ For each game (bandit with 2 symmetric contexts, blocks), in one run:
   hyperparameters, vectorised sub-environments, one torch thread, one local env runner;
 - `rllib_default`: `PPOConfig()` defaults (2 env runners, 1 env each, 256x256 MLPs,
   4000-step batches, minibatch 128, 30 epochs) with one learning module per seat
-  (RLlib's `ActionMaskingTorchRLModule`, since the observations carry a mask).
+  (RLlib's `ActionMaskingTorchRLModule`, since the observations carry a mask), and
+  `sample_timeout_s` raised from 60 s, which one default iteration exceeds here.
 Both are timed over whole training iterations after one warm-up iteration, and the table
 reports env steps per second and their ratio. Writes `benchmarks/results/train_throughput.json`.
 
@@ -62,6 +63,8 @@ def rllib_default(env: str, env_config: dict) -> PPOConfig:
         .environment(to_rllib(env), env_config=env_config)
         .multi_agent(policies={"player_0", "player_1"}, policy_mapping_fn=lambda agent_id, episode, **kw: agent_id)
         .rl_module(rl_module_spec=MultiRLModuleSpec(rl_module_specs={"player_0": spec, "player_1": spec}))
+        # The default 60 s sample timeout is shorter than one default iteration takes here.
+        .env_runners(sample_timeout_s=3600)
         .debugging(seed=0)
     )
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 from typing import Callable, Sequence
 
 EXIT_USAGE = 2
@@ -43,14 +44,46 @@ def _cmd_partners_list(args: argparse.Namespace) -> None:
 
 
 def _cmd_demo(args: argparse.Namespace) -> None:
+    from rllib_conv.pipelines.demo import demo
+
+    demo(storage=args.storage, address=args.address, overrides=args.set)
+
+
+def _cmd_train(args: argparse.Namespace) -> None:
     import pandas as pd
 
-    from rllib_conv.pipelines.scripted_demo import demo_table
+    from rllib_conv import config
+    from rllib_conv.pipelines.train import run
 
-    print("Scripted partners against scripted egos that know each convention (mean score per episode):")
-    table = demo_table(num_episodes=args.episodes, seed=args.seed)
-    with pd.option_context("display.width", 200, "display.float_format", "{:.3f}".format):
-        print(table.to_string(index=False))
+    raw = config.load(args.config, args.set)
+    results = run(raw, storage=args.storage, address=args.address)
+    rows = []
+    for r in results:
+        m = r.metrics or {}
+        cfg = r.config or {}
+        rows.append(
+            {
+                "trial": Path(r.path).name,
+                "method": cfg.get("method"),
+                "lam": cfg.get("lam"),
+                "population": cfg.get("population"),
+                "seed": cfg.get("seed"),
+                "env_steps": m.get("env_steps"),
+                "return": m.get("return_mean"),
+                "marginal_L1": m.get("eval/marginal_distance/paper"),
+                "error": "yes" if r.error else "",
+            }
+        )
+    with pd.option_context("display.width", 200, "display.max_colwidth", 60, "display.float_format", "{:.3f}".format):
+        print(pd.DataFrame(rows).to_string(index=False))
+    if results.errors:
+        raise RuntimeError(f"{len(results.errors)} trial(s) failed; see the error.txt files under {args.storage}")
+
+
+def _add_run_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a config value, e.g. --set lam=0.3 (repeatable)")
+    p.add_argument("--storage", default="runs", help="folder for results and checkpoints (default: runs)")
+    p.add_argument("--address", default=None, help="Ray cluster address (auto or HOST:PORT); default: $RAY_ADDRESS or a local Ray")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -58,10 +91,14 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="rllib-conv", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
 
-    p = sub.add_parser("demo", help="short end-to-end demo")
-    p.add_argument("--episodes", type=int, default=100, help="episodes per pair of players (default 100)")
-    p.add_argument("--seed", type=int, default=0)
+    p = sub.add_parser("demo", help="train the modular ego on the bandit (a few minutes) and show what it learned")
+    _add_run_args(p)
     p.set_defaults(func=_cmd_demo)
+
+    p = sub.add_parser("train", help="train the ego from an experiment YAML through Ray Tune")
+    p.add_argument("config", help="experiment YAML (see tune_configs/)")
+    _add_run_args(p)
+    p.set_defaults(func=_cmd_train)
 
     p = sub.add_parser("envs", help="list the registered games")
     p.set_defaults(func=_cmd_envs)
@@ -83,6 +120,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (ValueError, FileNotFoundError) as exc:
         print(f"rllib-conv: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
+    except RuntimeError as exc:
+        print(f"rllib-conv: error: {exc}", file=sys.stderr)
+        return 1
     return 0
 
 

@@ -138,6 +138,33 @@ class PettingZooMultiAgentEnv(MultiAgentEnv):
         self.env.close()
 
 
+BUILTIN_GAMES = ("bandit", "blocks", "hanabi")
+
+
+class RLlibGame(PettingZooMultiAgentEnv):
+    """A registered game built from an RLlib `env_config`: `{"game": name, "game_config": {...}}`.
+
+    Pass the class itself to `config.environment(RLlibGame, env_config=game_env_config(...))`:
+    unlike a Tune-registered name it is importable, so checkpoints restore in any process.
+    A user-registered game's factory travels in `env_config["factory"]` (pickled with the config).
+    """
+
+    def __init__(self, config: dict | None = None) -> None:
+        config = dict(config or {})
+        if "game" not in config:
+            raise ValueError("RLlibGame needs env_config['game'], the registered name of the game")
+        factory = config.get("factory") or registry.factory(config["game"])
+        super().__init__(factory(**dict(config.get("game_config", {}))))
+
+
+def game_env_config(name: str, game_config: dict) -> dict:
+    """The RLlib `env_config` for `RLlibGame`: built-ins by name, user games with their factory."""
+    env_config = {"game": name, "game_config": dict(game_config)}
+    if name not in BUILTIN_GAMES:
+        env_config["factory"] = registry.factory(name)
+    return env_config
+
+
 def to_rllib(name: str) -> str:
     """Register the PettingZoo env `name` with Tune and return the env id for RLlib configs.
 

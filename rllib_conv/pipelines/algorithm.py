@@ -11,7 +11,7 @@ from ray.rllib.core.rl_module.rl_module import RLModuleSpec
 
 from rllib_conv import envs, partners
 from rllib_conv.config import ExperimentConfig
-from rllib_conv.envs.rllib_adapter import PettingZooMultiAgentEnv, to_rllib
+from rllib_conv.envs.rllib_adapter import PettingZooMultiAgentEnv, RLlibGame, game_env_config
 from rllib_conv.learners.marginal_learner import MarginalPPOLearner
 from rllib_conv.modules import (
     AGG_HEAD_ID,
@@ -95,7 +95,13 @@ def build_ppo_config(setup: EgoSetup) -> PPOConfig:
     mapping = PartnerMapping([e.name for e in setup.train], setup.ego_agent, setup.partner_agent, shared_head=exp.method == "agg")
     return (
         PPOConfig()
-        .environment(to_rllib(setup.population.env), env_config=setup.env_config)
+        .environment(
+            RLlibGame,
+            env_config=game_env_config(setup.population.env, setup.env_config),
+            # RLlib's checker steps the env with unmasked random actions, which our games
+            # rightly reject as illegal; the games are tested with PettingZoo's own checks.
+            disable_env_checking=True,
+        )
         .env_runners(
             num_env_runners=exp.run.num_env_runners,
             num_envs_per_env_runner=exp.run.num_envs_per_env_runner,

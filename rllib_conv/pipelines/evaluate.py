@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch
+from ray.rllib.core.rl_module.multi_rl_module import MultiRLModule
 
 from rllib_conv import envs
 from rllib_conv.envs.bandit import CollaborativeBanditEnv
@@ -109,3 +111,11 @@ def marginal_distances(
     n_opt = optimal.sum(axis=1)
     ambiguous = (n_opt > 1) & (n_opt < mask.sum(axis=1))
     return {"paper": float(dist[ambiguous].mean()) if ambiguous.any() else float("nan"), "all": float(dist.mean())}
+
+
+def load_module(checkpoint: str | Path) -> ConventionMultiRLModule:
+    """Load the ego's MultiRLModule (task module, heads, partners) from an algorithm checkpoint."""
+    path = Path(checkpoint) / "learner_group" / "learner" / "rl_module"
+    if not path.is_dir():
+        raise ValueError(f"{str(checkpoint)!r} is not an algorithm checkpoint (no {path.relative_to(checkpoint)})")
+    return MultiRLModule.from_checkpoint(path)

@@ -146,7 +146,10 @@ def run(raw: dict[str, Any], storage: str | Path = "runs", address: str | None =
 
     Results go to `storage/<name>/`, with the experiment's config in `experiment.yaml`.
     """
-    first = validate(raw)[0]
+    variants = validate(raw)
+    for exp in variants:
+        resolve(exp)  # unknown population, wrong seat, bad env config: fail before anything is written
+    first = variants[0]
     storage = Path(storage).resolve()
     (storage / first.name).mkdir(parents=True, exist_ok=True)
     (storage / first.name / "experiment.yaml").write_text(yaml.safe_dump(raw, sort_keys=False))
@@ -159,6 +162,8 @@ def run(raw: dict[str, Any], storage: str | Path = "runs", address: str | None =
             storage_path=str(storage),
             callbacks=[ProgressLine()],
             verbose=0,
+            # Our config.yaml and eval.json are trial artifacts: persist them with the checkpoints.
+            sync_config=tune.SyncConfig(sync_artifacts=True),
             checkpoint_config=tune.CheckpointConfig(
                 num_to_keep=first.run.keep_checkpoints,
                 checkpoint_frequency=first.run.checkpoint_every,

@@ -1,0 +1,66 @@
+"""The README's demo: train the modular ego on the bandit, then show what it learned.
+
+Trains `tune_configs/bandit_modular.yaml` (lam 0.5, 2 symmetric contexts, 4 hand-designed
+partners, the paper's 10 000 steps) through Tune on a local Ray, then prints each
+partner's convention with the ego's expected return, and the task module's action
+distribution per context beside the true marginals.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from rllib_conv import config, partners
+from rllib_conv.envs.bandit import CollaborativeBanditEnv, oracle_marginals
+from rllib_conv.pipelines.evaluate import bandit_states, load_module, task_probs
+from rllib_conv.pipelines.train import run
+
+DEMO_CONFIG = Path(__file__).resolve().parents[2] / "tune_configs" / "bandit_modular.yaml"
+
+
+def _arms(p: np.ndarray, top: int = 3) -> str:
+    order = np.argsort(-p)[:top]
+    return "  ".join(f"{a}:{p[a]:.2f}" for a in order if p[a] >= 0.005)
+
+
+def demo(storage: str | Path = "runs", address: str | None = None, overrides: list[str] = ()) -> None:
+    """Train, then print per-partner returns and the task module's marginals."""
+    raw = config.load(DEMO_CONFIG, ["name=demo", *overrides])
+    result = run(raw, storage=storage, address=address)[0]
+    if result.error is not None:
+        raise RuntimeError(f"demo training failed: {result.error}")
+    exp = config.validate(raw)[0]
+    pop = partners.get(exp.population)
+    m = result.metrics
+    rows = [
+        {
+            "partner": e.name,
+            "convention (arm per context)": e.params["arms"],
+            "expected return": m[f"eval/exact/{e.name}"],
+            "200 episodes": f"{m[f'eval/mean/{e.name}']:.3f} ± {m[f'eval/stderr/{e.name}']:.3f}",
+        }
+        for e in pop.entries("train")
+    ]
+    print(f"\nModular ego (lam {exp.lam}) after {m['env_steps']} env steps ({m['wall_s']:.0f} s), run folder {result.path}")
+    print(pd.DataFrame(rows).to_string(index=False, float_format="{:.3f}".format))
+    env = CollaborativeBanditEnv(**pop.env_config)
+    obs, mask = bandit_states(pop.env_config)
+    probs = task_probs(load_module(result.checkpoint.path), obs, mask)
+    truth = oracle_marginals(env.prizes)
+    table = pd.DataFrame(
+        {
+            "context": range(env.num_contexts),
+            "task module p(arm)": [_arms(p) for p in probs],
+            "true marginals": [_arms(t) for t in truth],
+            "L1": np.abs(probs - truth).sum(axis=1),
+        }
+    )
+    print("\nTask module vs the true marginals (uniform over each context's good arms):")
+    print(table.to_string(index=False, float_format="{:.3f}".format))
+    print(
+        f"L1 distance: {m['eval/marginal_distance/paper']:.3f} on the symmetric contexts (paper: 0.01-0.02), "
+        f"{m['eval/marginal_distance/all']:.3f} over all contexts"
+    )

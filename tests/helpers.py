@@ -1,0 +1,53 @@
+"""Builders shared by the RLlib-level tests: ego setups, learners without Ray, hand-made batches."""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+from ray.rllib.core.columns import Columns
+from ray.rllib.evaluation.postprocessing import Postprocessing
+
+from rllib_conv import envs
+from rllib_conv.config import ExperimentConfig
+from rllib_conv.envs.rllib_adapter import PettingZooMultiAgentEnv
+from rllib_conv.pipelines.algorithm import EgoSetup, build_ppo_config, resolve
+
+
+def bandit_setup(**overrides) -> EgoSetup:
+    """The paper's bandit (2 symmetric contexts, 4 hand-designed partners) with `overrides`."""
+    return resolve(ExperimentConfig(population="bandit-s2-hand", **overrides))
+
+
+def build_learner(setup: EgoSetup):
+    """A built MarginalPPOLearner for `setup`, in this process (no Ray actors)."""
+    env = PettingZooMultiAgentEnv(envs.make(setup.population.env, **setup.env_config))
+    torch.manual_seed(0)
+    return build_ppo_config(setup).build_learner(env=env)
+
+
+def hand_batch(head_ids: list[str], rows: int = 6, num_contexts: int = 4, num_arms: int = 8, seed: int = 0) -> dict:
+    """A hand-made PPO train batch per ego head: one-hot contexts, actions, advantages, targets."""
+    rng = np.random.default_rng(seed)
+    batch = {}
+    for mid in head_ids:
+        contexts = rng.integers(num_contexts, size=rows)
+        actions = rng.integers(num_arms, size=rows)
+        logits = rng.normal(size=(rows, num_arms)).astype(np.float32)
+        logp = logits[np.arange(rows), actions] - np.log(np.exp(logits).sum(axis=1))
+        batch[mid] = {
+            Columns.OBS: {
+                "observations": torch.as_tensor(np.eye(num_contexts, dtype=np.float32)[contexts]),
+                "action_mask": torch.ones(rows, num_arms),
+            },
+            Columns.ACTIONS: torch.as_tensor(actions),
+            Columns.ACTION_LOGP: torch.as_tensor(logp, dtype=torch.float32),
+            Columns.ACTION_DIST_INPUTS: torch.as_tensor(logits),
+            Postprocessing.ADVANTAGES: torch.as_tensor(rng.normal(size=rows), dtype=torch.float32),
+            Postprocessing.VALUE_TARGETS: torch.as_tensor(rng.normal(size=rows), dtype=torch.float32),
+        }
+    return batch
+
+
+def params_of(module) -> dict[str, torch.Tensor]:
+    """A detached copy of a module's parameters by name."""
+    return {k: v.detach().clone() for k, v in module.named_parameters()}

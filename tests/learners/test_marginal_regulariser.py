@@ -1,0 +1,74 @@
+"""The marginal regulariser: known answers by hand, lam = 0 is PPO, and its place in the loss."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+from ray.rllib.algorithms.ppo.torch.ppo_torch_learner import PPOTorchLearner
+
+from rllib_conv.learners.marginal_learner import MARGINAL_REG_KEY, marginal_distance
+from rllib_conv.modules.multi import TASK_ID
+from rllib_conv.pipelines.evaluate import head_probs, task_probs
+from tests.helpers import bandit_setup, build_learner, hand_batch
+
+
+def test_marginal_distance_by_hand() -> None:
+    # Row 1: task (0.5, 0.25, 0.25); heads (0.7, 0.2, 0.1) and (0.1, 0.6, 0.3) -> mean (0.4, 0.4, 0.2)
+    #        |0.5-0.4| + |0.25-0.4| + |0.25-0.2| = 0.1 + 0.15 + 0.05 = 0.30
+    # Row 2: task (1/3, 1/3, 1/3); heads (0.2, 0.2, 0.6) and (0.6, 0.2, 0.2) -> mean (0.4, 0.2, 0.4)
+    #        1/15 + 2/15 + 1/15 = 4/15
+    task = torch.log(torch.tensor([[0.5, 0.25, 0.25], [1 / 3, 1 / 3, 1 / 3]]))
+    h1 = torch.log(torch.tensor([[0.7, 0.2, 0.1], [0.2, 0.2, 0.6]]))
+    h2 = torch.log(torch.tensor([[0.1, 0.6, 0.3], [0.6, 0.2, 0.2]]))
+    assert marginal_distance(task, [h1, h2]).item() == pytest.approx((0.30 + 4 / 15) / 2, abs=1e-6)
+    # The task module matching the mean policy exactly costs nothing.
+    assert marginal_distance(torch.log(torch.tensor([[0.4, 0.4, 0.2]])), [h1[:1], h2[:1]]).item() == pytest.approx(0.0, abs=1e-6)
+
+
+def test_masked_actions_are_excluded_from_the_distance() -> None:
+    # An illegal action gets the float minimum as its logit: zero probability everywhere.
+    lowest = torch.finfo(torch.float32).min
+    task = torch.tensor([[0.0, 0.0, lowest]])
+    head = torch.tensor([[np.log(3.0), 0.0, lowest]])  # (0.75, 0.25, 0)
+    assert marginal_distance(task, [head]).item() == pytest.approx(0.5, abs=1e-6)
+
+
+def test_regulariser_term_in_the_learner_loss_equals_lam_times_d() -> None:
+    learner = build_learner(bandit_setup(lam=0.5))
+    heads = learner.module.head_ids()
+    batch = hand_batch(heads)
+    losses = learner.compute_losses(fwd_out=learner.module.forward_train(batch), batch=batch)
+    assert set(losses) == set(heads) | {MARGINAL_REG_KEY}
+    # D by hand from the module's own distributions on the same states.
+    obs = np.concatenate([batch[h]["obs"]["observations"].numpy() for h in heads])
+    mean_policy = np.mean([head_probs(learner.module, h, obs) for h in heads], axis=0)
+    d = np.abs(task_probs(learner.module, obs) - mean_policy).sum(axis=1).mean()
+    assert losses[MARGINAL_REG_KEY].item() == pytest.approx(0.5 * d, rel=1e-5)
+
+
+def test_lam_zero_is_exactly_ppo() -> None:
+    learner = build_learner(bandit_setup(lam=0.0))
+    heads = learner.module.head_ids()
+    batch = hand_batch(heads, seed=3)
+    ours = learner.compute_losses(fwd_out=learner.module.forward_train(batch), batch=batch)
+    assert set(ours) == set(heads)  # no extra term
+    # Plain PPO on each head's own forward pass (no batched task forward, no regulariser).
+    per_module = {h: learner.module[h].forward_train(batch[h]) for h in heads}
+    ppo = PPOTorchLearner.compute_losses(learner, fwd_out=per_module, batch=batch)
+    for h in heads:
+        assert ours[h].item() == pytest.approx(ppo[h].item(), abs=1e-6)
+
+
+def test_batched_train_forward_matches_each_heads_own_forward() -> None:
+    learner = build_learner(bandit_setup(lam=0.5))
+    heads = learner.module.head_ids()
+    batch = hand_batch(heads, seed=5)
+    batched = learner.module.forward_train(batch)
+    assert set(batched) == set(heads) | {TASK_ID}
+    for h in heads:
+        single = learner.module[h].forward_train(batch[h])
+        torch.testing.assert_close(batched[h]["action_dist_inputs"], single["action_dist_inputs"])
+        torch.testing.assert_close(
+            learner.module[h].compute_values(batch[h], batched[h]["embeddings"]), learner.module[h].compute_values(batch[h])
+        )

@@ -1,0 +1,136 @@
+"""The modular ego inside a real RLlib PPO algorithm: what it trains on, spreading, determinism, checkpoints."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+import torch
+
+from rllib_conv.config import ExperimentConfig
+from rllib_conv.envs.blocks import decode_observation
+from rllib_conv.learners.marginal_learner import MarginalPPOLearner
+from rllib_conv.modules import TASK_ID, ego_id, partner_id
+from rllib_conv.pipelines.algorithm import build_ppo_config, resolve
+from rllib_conv.pipelines.evaluate import bandit_states, head_probs
+from rllib_conv.pipelines.train import summarize
+
+SEEN: dict[str, list] = {}
+
+
+class RecordingLearner(MarginalPPOLearner):
+    """Records which modules and which observations reach the loss."""
+
+    def compute_losses(self, *, fwd_out, batch):
+        for mid, b in batch.items():
+            SEEN.setdefault(mid, []).append(b["obs"]["observations"].detach().numpy().copy())
+        return super().compute_losses(fwd_out=fwd_out, batch=batch)
+
+
+def small(population: str, **overrides) -> ExperimentConfig:
+    """A quick experiment: small networks and batches, a few iterations' worth of steps."""
+    base = {"population": population, "lam": 0.5, "model": {"hidden": 16}, "ppo": {"rollout_per_partner": 60, "minibatch_size": 30, "num_epochs": 2}}
+    return ExperimentConfig.model_validate({**base, **overrides})
+
+
+def test_ego_never_trains_on_partner_moves(ray_session) -> None:
+    SEEN.clear()
+    setup = resolve(small("blocks-perm"))
+    algo = build_ppo_config(setup).learners(learner_class=RecordingLearner).build_algo()
+    try:
+        algo.train()
+    finally:
+        algo.stop()
+    assert set(SEEN) == {ego_id(e.name) for e in setup.train}  # no partner module, no task-only batch
+    moves = {decode_observation(o)["move"] for rows in SEEN.values() for obs in rows for o in obs}
+    assert moves == {0, 2, 4}  # P1's own turns only: the partner moves on 1, 3, 5
+
+
+def test_episodes_are_spread_evenly_over_partners(ray_session) -> None:
+    setup = resolve(small("bandit-s2-hand"))
+    algo = build_ppo_config(setup).build_algo()
+    try:
+        result = algo.train()
+    finally:
+        algo.stop()
+    sampled = result["env_runners"]["num_module_steps_sampled_lifetime"]
+    counts = [sampled[ego_id(e.name)] for e in setup.train]
+    assert counts == [sampled[partner_id(e.name)] for e in setup.train]
+    assert max(counts) - min(counts) <= 8  # round robin: at most one episode per vector sub-env apart
+    assert sum(counts) >= 240
+
+
+def _run(exp: ExperimentConfig, iterations: int):
+    algo = build_ppo_config(resolve(exp)).build_algo()
+    try:
+        metrics = [summarize(algo.train(), resolve(exp)) for _ in range(iterations)]
+        weights = {k: v.clone() for k, v in algo.env_runner.module[TASK_ID].state_dict().items()}
+        return metrics, weights
+    finally:
+        algo.stop()
+
+
+def test_same_seed_same_metrics_different_seed_differs(ray_session) -> None:
+    m1, w1 = _run(small("bandit-s2-hand", seed=3), 3)
+    m2, w2 = _run(small("bandit-s2-hand", seed=3), 3)
+    m3, w3 = _run(small("bandit-s2-hand", seed=4), 3)
+    assert m1 == m2
+    assert all(torch.equal(w1[k], w2[k]) for k in w1)
+    assert m1 != m3 or any(not torch.equal(w1[k], w3[k]) for k in w1)
+
+
+def test_partner_modules_never_change(ray_session) -> None:
+    setup = resolve(small("bandit-s2-hand"))
+    algo = build_ppo_config(setup).build_algo()
+    obs, mask = bandit_states(setup.env_config)
+    batch = {"obs": {"observations": torch.as_tensor(obs), "action_mask": torch.as_tensor(mask, dtype=torch.float32)}}
+    try:
+        before = {e.name: algo.env_runner.module[partner_id(e.name)].forward_inference(batch)["actions"].tolist() for e in setup.train}
+        algo.train()
+        algo.train()
+        after = {e.name: algo.env_runner.module[partner_id(e.name)].forward_inference(batch)["actions"].tolist() for e in setup.train}
+        learner = algo.learner_group._learner
+        # `_module_optimizers` is a defaultdict: a module may be listed with no optimizer.
+        assert not any(names for mid, names in learner._module_optimizers.items() if mid.startswith("partner@"))
+    finally:
+        algo.stop()
+    assert before == after == {e.name: e.params["arms"] for e in setup.train}
+
+
+def test_checkpoint_round_trip_in_a_fresh_process(ray_session, tmp_path) -> None:
+    setup = resolve(small("bandit-s2-hand"))
+    algo = build_ppo_config(setup).build_algo()
+    try:
+        algo.train()
+        algo.save_to_path(str(tmp_path))
+        obs, _ = bandit_states(setup.env_config)
+        heads = [ego_id(e.name) for e in setup.train]
+        expected = {h: head_probs(algo.env_runner.module, h, obs).tolist() for h in heads}
+    finally:
+        algo.stop()
+    # The task weights are stored once, beside one folder per head.
+    stored = sorted(p.name for p in (tmp_path / "learner_group" / "learner" / "rl_module").iterdir() if p.is_dir())
+    assert TASK_ID in stored and all(h in stored for h in heads)
+    script = textwrap.dedent(
+        f"""
+        import json, ray
+        from ray.rllib.algorithms.algorithm import Algorithm
+        from rllib_conv.pipelines.evaluate import bandit_states, head_probs
+        ray.init(num_cpus=1, include_dashboard=False, log_to_driver=False)
+        algo = Algorithm.from_checkpoint({str(tmp_path)!r})
+        obs, _ = bandit_states({setup.env_config!r})
+        print("RESULT" + json.dumps({{h: head_probs(algo.env_runner.module, h, obs).tolist() for h in {heads!r}}}))
+        algo.stop()
+        """
+    )
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300)
+    line = next((l for l in out.stdout.splitlines() if l.startswith("RESULT")), None)
+    assert line is not None, out.stderr[-3000:]
+    loaded = json.loads(line[len("RESULT") :])
+    for h in heads:
+        np.testing.assert_allclose(loaded[h], expected[h], atol=1e-6)
+        assert np.argmax(loaded[h], axis=1).tolist() == np.argmax(expected[h], axis=1).tolist()

@@ -1,0 +1,52 @@
+"""The `rllib-conv` command: listing, bad input (exit 2, one line, nothing written), a tiny train."""
+
+from __future__ import annotations
+
+import yaml
+
+from rllib_conv.cli import main
+
+
+def test_envs_and_partners_list(capsys) -> None:
+    assert main(["envs"]) == 0
+    assert capsys.readouterr().out.split() == ["bandit", "blocks", "hanabi"]
+    assert main(["partners", "list"]) == 0
+    out = capsys.readouterr().out
+    assert "bandit-s2-hand" in out and "blocks-perm" in out and "bandit-user-study" in out
+
+
+def test_bad_config_exits_2_with_one_line_and_writes_nothing(tmp_path, capsys) -> None:
+    path = tmp_path / "exp.yaml"
+    path.write_text(yaml.safe_dump({"population": "bandit-s2-hand", "lamda": 0.5}))
+    storage = tmp_path / "runs"
+    assert main(["train", str(path), "--storage", str(storage)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "lamda: Extra inputs are not permitted" in err[0]
+    assert main(["train", str(tmp_path / "missing.yaml"), "--storage", str(storage)]) == 2
+    assert "does not exist" in capsys.readouterr().err
+    assert main(["train", str(path), "--set", "lamda", "--storage", str(storage)]) == 2
+    assert not storage.exists()
+
+
+def test_unknown_population_is_reported_before_training(tmp_path, capsys) -> None:
+    path = tmp_path / "exp.yaml"
+    path.write_text(yaml.safe_dump({"name": "x", "population": {"grid_search": ["bandit-s2-hand", "no-such-population"]}}))
+    assert main(["train", str(path), "--storage", str(tmp_path / "runs")]) == 2
+    assert "unknown population 'no-such-population'" in capsys.readouterr().err
+    assert not (tmp_path / "runs").exists()
+
+
+def test_train_prints_a_summary_per_trial(ray_session, tmp_path, capsys) -> None:
+    path = tmp_path / "exp.yaml"
+    exp = {
+        "name": "tiny",
+        "population": {"grid_search": ["bandit-s1-hand", "bandit-s2-hand"]},
+        "model": {"hidden": 8},
+        "ppo": {"rollout_per_partner": 16, "num_epochs": 1},
+        "run": {"timesteps": 64},
+    }
+    path.write_text(yaml.safe_dump(exp))
+    assert main(["train", str(path), "--storage", str(tmp_path / "runs")]) == 0
+    out = capsys.readouterr().out
+    assert "bandit-s1-hand" in out and "bandit-s2-hand" in out
+    assert len(list((tmp_path / "runs" / "tiny").glob("EgoTrainable_*/config.yaml"))) == 2

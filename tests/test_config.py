@@ -1,0 +1,77 @@
+"""Experiment configs: validation names the bad key, grids expand, overrides apply."""
+
+from __future__ import annotations
+
+import pytest
+import yaml
+
+from rllib_conv import config
+
+
+def write(tmp_path, data) -> str:
+    path = tmp_path / "exp.yaml"
+    path.write_text(yaml.safe_dump(data))
+    return str(path)
+
+
+def test_shipped_configs_are_valid() -> None:
+    from pathlib import Path
+
+    files = sorted(Path("tune_configs").glob("*.yaml"))
+    assert files
+    for f in files:
+        assert config.validate(config.load(f), str(f))
+
+
+def test_defaults_are_the_papers_per_game() -> None:
+    exp = config.ExperimentConfig(population="x").resolve("blocks")
+    assert (exp.model.hidden, exp.ppo.rollout_per_partner, exp.ppo.minibatch_size, exp.ppo.num_epochs, exp.run.timesteps) == (80, 640, 160, 5, 1_000_000)
+    exp = config.ExperimentConfig(population="x", model={"hidden": 12}).resolve("bandit")
+    assert (exp.model.hidden, exp.ppo.num_epochs, exp.run.timesteps) == (12, 20, 10_000)
+
+
+@pytest.mark.parametrize(
+    ("data", "match"),
+    [
+        ({"population": "p", "lamda": 0.5}, "lamda: Extra inputs are not permitted"),
+        ({"population": "p", "ppo": {"lr": "fast"}}, "ppo.lr: Input should be a valid number"),
+        ({"population": "p", "ppo": {"minibatch_size": 0}}, "ppo.minibatch_size: Input should be greater than 0"),
+        ({"population": "p", "method": "maml"}, "method: Input should be 'modular', 'agg', 'no_task_logits' or 'oracle'"),
+        ({"population": "p", "method": "no_task_logits", "lam": 0.5}, "lam must be 0 for method 'no_task_logits'"),
+        ({"population": "p", "env": "chess"}, "env: Value error, unknown env 'chess'"),
+        ({"lam": 0.5}, "population: Field required"),
+        ({"population": "p", "lam": -1}, "lam: Input should be greater than or equal to 0"),
+        ({"population": "p", "name": "a b"}, "name: Value error, must be a non-empty folder name"),
+        ({"population": "p", "lam": {"grid_search": [0.5, "x"]}}, "lam: Input should be a valid number"),
+        ({"population": "p", "lam": {"grid_search": []}}, "lam: grid_search needs a non-empty list"),
+    ],
+)
+def test_bad_configs_name_the_key(tmp_path, data, match) -> None:
+    with pytest.raises(ValueError, match=match):
+        config.load(write(tmp_path, data))
+
+
+def test_grids_expand_to_every_combination(tmp_path) -> None:
+    raw = config.load(write(tmp_path, {"population": "p", "lam": {"grid_search": [0.0, 0.5]}, "seed": {"grid_search": [0, 1, 2]}}))
+    variants = config.validate(raw)
+    assert sorted((v.lam, v.seed) for v in variants) == [(lam, s) for lam in (0.0, 0.5) for s in (0, 1, 2)]
+
+
+def test_set_overrides_and_their_errors(tmp_path) -> None:
+    raw = config.load(write(tmp_path, {"population": "p"}), ["ppo.lr=0.001", "lam=0.3", "run.timesteps=500"])
+    assert (raw["ppo"]["lr"], raw["lam"], raw["run"]["timesteps"]) == (0.001, 0.3, 500)
+    with pytest.raises(ValueError, match="--set expects key=value"):
+        config.load(write(tmp_path, {"population": "p"}), ["lam"])
+    with pytest.raises(ValueError, match="ppo.num_epochs: Input should be a valid integer"):
+        config.load(write(tmp_path, {"population": "p"}), ["ppo.num_epochs=many"])
+
+
+def test_missing_and_broken_files(tmp_path) -> None:
+    with pytest.raises(ValueError, match="does not exist"):
+        config.load(tmp_path / "nope.yaml")
+    (tmp_path / "bad.yaml").write_text("a: [1, 2")
+    with pytest.raises(ValueError, match="not valid YAML"):
+        config.load(tmp_path / "bad.yaml")
+    (tmp_path / "list.yaml").write_text("- 1\n- 2\n")
+    with pytest.raises(ValueError, match="expected a mapping"):
+        config.load(tmp_path / "list.yaml")
