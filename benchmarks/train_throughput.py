@@ -25,7 +25,9 @@ import ray
 from ray.rllib.algorithms.ppo import PPOConfig
 from ray.rllib.core.rl_module.multi_rl_module import MultiRLModuleSpec
 from ray.rllib.core.rl_module.rl_module import RLModuleSpec
-from ray.rllib.examples.rl_modules.classes.action_masking_rlm import ActionMaskingTorchRLModule
+from ray.rllib.examples.rl_modules.classes.action_masking_rlm import (
+    ActionMaskingTorchRLModule,
+)
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import write_result  # noqa: E402
@@ -33,7 +35,11 @@ from _common import write_result  # noqa: E402
 from rllib_conv import partners  # noqa: E402
 from rllib_conv.config import ExperimentConfig  # noqa: E402
 from rllib_conv.envs.rllib_adapter import to_rllib  # noqa: E402
-from rllib_conv.partners.blocks import TEST_PERMUTATIONS, TRAIN_PERMUTATIONS, PermutationPartner  # noqa: E402
+from rllib_conv.partners.blocks import (  # noqa: E402
+    TEST_PERMUTATIONS,
+    TRAIN_PERMUTATIONS,
+    PermutationPartner,
+)
 from rllib_conv.pipelines.algorithm import build_ppo_config, resolve  # noqa: E402
 
 

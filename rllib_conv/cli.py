@@ -86,6 +86,36 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--address", default=None, help="Ray cluster address (auto or HOST:PORT); default: $RAY_ADDRESS or a local Ray")
 
 
+def _cmd_partners_train(args: argparse.Namespace) -> None:
+    import pandas as pd
+
+    from rllib_conv import config
+    from rllib_conv.pipelines.selfplay import train_population
+
+    raw = config.load(args.config, args.set, schema=config.SelfPlayConfig)
+    population, report = train_population(raw, out=args.out, storage=args.storage, address=args.address, overwrite=args.overwrite)
+    with pd.option_context("display.width", 200, "display.float_format", "{:.3f}".format):
+        print(report.to_string(index=False))
+    failed = report.loc[~report["passed"].astype(bool), "partner"].tolist()
+    print(f"population {population.name!r}: {len(population.partners)} partners kept in {Path(args.out) / population.name}")
+    if failed:
+        print(f"not kept (did not reach the gate): {', '.join(failed)}")
+
+
+def _cmd_crossplay(args: argparse.Namespace) -> None:
+    import pandas as pd
+
+    from rllib_conv import partners
+    from rllib_conv.pipelines.crossplay import crossplay, write_crossplay
+
+    a, b = partners.get(args.a), partners.get(args.b)
+    matrix = crossplay(a, b, episodes=args.episodes, seed=args.seed)
+    csv, png = write_crossplay(matrix, args.out, f"{a.name}__{b.name}")
+    with pd.option_context("display.width", 250, "display.float_format", "{:.2f}".format):
+        print(matrix.to_string())
+    print(f"wrote {csv} and {png}")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Return the argument parser of every subcommand."""
     parser = argparse.ArgumentParser(prog="rllib-conv", description=__doc__.splitlines()[0])
@@ -107,6 +137,20 @@ def build_parser() -> argparse.ArgumentParser:
     psub = p.add_subparsers(dest="partners_command", required=True)
     pl = psub.add_parser("list", help="list the built-in populations")
     pl.set_defaults(func=_cmd_partners_list)
+    pt = psub.add_parser("train", help="train a self-play population from a YAML (see tune_configs/selfplay_*.yaml)")
+    pt.add_argument("config")
+    pt.add_argument("--out", default="populations", help="folder for the population (default: populations)")
+    pt.add_argument("--overwrite", action="store_true", help="replace an existing population of the same name")
+    _add_run_args(pt)
+    pt.set_defaults(func=_cmd_partners_train)
+
+    p = sub.add_parser("crossplay", help="pair every member of population A (ego seat) with every member of B")
+    p.add_argument("a", help="population name, manifest or folder")
+    p.add_argument("b", help="population name, manifest or folder")
+    p.add_argument("--episodes", type=int, default=100, help="episodes per pair (default 100)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", default="crossplay", help="folder for the CSV and PNG (default: crossplay)")
+    p.set_defaults(func=_cmd_crossplay)
     return parser
 
 

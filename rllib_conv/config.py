@@ -12,10 +12,22 @@ from __future__ import annotations
 import copy
 import itertools
 from pathlib import Path
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, PositiveFloat, PositiveInt, ValidationError, field_validator, model_validator
+from pydantic import (
+    AfterValidator,
+    BaseModel,
+    ConfigDict,
+    Field,
+    NonNegativeFloat,
+    NonNegativeInt,
+    PositiveFloat,
+    PositiveInt,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
 
 from rllib_conv.envs import names as env_names
 
@@ -30,6 +42,22 @@ GAME_DEFAULTS: dict[str, dict[str, int]] = {
     "hanabi": {"hidden": 500, "rollout_per_partner": 640, "minibatch_size": 160, "num_epochs": 5, "timesteps": 500_000},
 }
 FALLBACK_DEFAULTS = {"hidden": 64, "rollout_per_partner": 256, "minibatch_size": 64, "num_epochs": 10, "timesteps": 100_000}
+
+
+def _folder_name(v: str) -> str:
+    if not v or any(c in v for c in '/\\<>:"|?* '):
+        raise ValueError(f"must be a non-empty folder name without spaces or /\\<>:\"|?*, got {v!r}")
+    return v
+
+
+def _registered_env(v: str) -> str:
+    if v not in env_names():
+        raise ValueError(f"unknown env {v!r}; registered: {', '.join(env_names())}")
+    return v
+
+
+FolderName = Annotated[str, AfterValidator(_folder_name)]
+EnvName = Annotated[str, AfterValidator(_registered_env)]
 
 
 class _Strict(BaseModel):
@@ -50,13 +78,22 @@ class PPOSettings(_Strict):
     gamma: float = Field(0.99, ge=0.0, le=1.0)
     gae_lambda: float = Field(0.95, ge=0.0, le=1.0)
     clip_param: PositiveFloat = 0.2
-    entropy_coeff: float = Field(0.0, ge=0.0)
+    # A constant, or a piecewise-linear schedule [[env_step, value], ...] starting at step 0.
+    entropy_coeff: NonNegativeFloat | list[tuple[NonNegativeInt, NonNegativeFloat]] = 0.0
     vf_loss_coeff: float = Field(0.5, ge=0.0)
     grad_clip: PositiveFloat | None = 0.5
     adam_eps: PositiveFloat = 1e-5
     rollout_per_partner: PositiveInt | None = None
     minibatch_size: PositiveInt | None = None
     num_epochs: PositiveInt | None = None
+
+
+    @field_validator("entropy_coeff")
+    @classmethod
+    def _schedule_starts_at_zero(cls, v):
+        if isinstance(v, list) and (not v or v[0][0] != 0 or any(a[0] >= b[0] for a, b in zip(v, v[1:]))):
+            raise ValueError("a schedule must be [[0, value], [step, value], ...] with increasing steps")
+        return v
 
 
 class RunSettings(_Strict):
@@ -73,8 +110,8 @@ class RunSettings(_Strict):
 class ExperimentConfig(_Strict):
     """One ego-training experiment: game, partners, method, regulariser, sizes, PPO, run."""
 
-    name: str = "experiment"
-    env: str | None = None
+    name: FolderName = "experiment"
+    env: EnvName | None = None
     env_config: dict[str, Any] = Field(default_factory=dict)
     population: str
     method: Method = "modular"
@@ -84,20 +121,6 @@ class ExperimentConfig(_Strict):
     model: ModelSettings = Field(default_factory=ModelSettings)
     ppo: PPOSettings = Field(default_factory=PPOSettings)
     run: RunSettings = Field(default_factory=RunSettings)
-
-    @field_validator("name")
-    @classmethod
-    def _name_is_a_folder_name(cls, v: str) -> str:
-        if not v or any(c in v for c in '/\\<>:"|?* '):
-            raise ValueError(f"must be a non-empty folder name without spaces or /\\<>:\"|?*, got {v!r}")
-        return v
-
-    @field_validator("env")
-    @classmethod
-    def _env_is_registered(cls, v: str | None) -> str | None:
-        if v is not None and v not in env_names():
-            raise ValueError(f"unknown env {v!r}; registered: {', '.join(env_names())}")
-        return v
 
     @model_validator(mode="after")
     def _consistent(self) -> "ExperimentConfig":
@@ -116,6 +139,44 @@ class ExperimentConfig(_Strict):
                 setattr(out.ppo, key, d[key])
         out.run.timesteps = out.run.timesteps or d["timesteps"]
         return out
+
+
+class GateSettings(_Strict):
+    """The score a self-play pair must reach to be kept, and how it is checked."""
+
+    score: float
+    episodes: PositiveInt = 1000
+    check_every: PositiveInt = 5
+    check_episodes: PositiveInt = 200
+
+
+class SelfPlayConfig(_Strict):
+    """Self-play partner training: `train_pairs + test_pairs` pairs, pair k seeded `seed + k`.
+
+    `ppo.rollout_per_partner` is the rollout length per iteration. With `shared_seats`
+    one module plays both seats (Hanabi); otherwise each seat has its own module and the
+    `partner_agent` seat of each pair becomes a partner.
+    """
+
+    name: FolderName = "selfplay"
+    env: EnvName
+    env_config: dict[str, Any] = Field(default_factory=dict)
+    train_pairs: PositiveInt = 10
+    test_pairs: int = Field(10, ge=0)
+    seed: int = 0
+    pair: int = Field(0, ge=0)
+    shared_seats: bool = False
+    partner_agent: str = "player_1"
+    greedy_partners: bool = True
+    model: ModelSettings = Field(default_factory=ModelSettings)
+    ppo: PPOSettings = Field(default_factory=PPOSettings)
+    run: RunSettings = Field(default_factory=RunSettings)
+    gate: GateSettings
+
+    def resolve(self) -> "SelfPlayConfig":
+        """Return a copy with the game's defaults filled in (see `ExperimentConfig.resolve`)."""
+        as_exp = ExperimentConfig(population="-", model=self.model, ppo=self.ppo, run=self.run).resolve(self.env)
+        return self.model_copy(update={"model": as_exp.model, "ppo": as_exp.ppo, "run": as_exp.run})
 
 
 def _format(exc: ValidationError) -> str:
@@ -156,14 +217,14 @@ def expand_grid(raw: dict[str, Any]) -> list[dict[str, Any]]:
     return variants
 
 
-def validate(raw: dict[str, Any], source: str = "config") -> list[ExperimentConfig]:
-    """Validate every grid combination of `raw`; return them. ValueError names the bad key."""
+def validate(raw: dict[str, Any], source: str = "config", schema: type[BaseModel] = ExperimentConfig) -> list:
+    """Validate every grid combination of `raw` against `schema`; return them. ValueError names the bad key."""
     if not isinstance(raw, dict):
         raise ValueError(f"{source}: expected a mapping of settings, got {type(raw).__name__}")
     out = []
     for variant in expand_grid(raw):
         try:
-            out.append(ExperimentConfig.model_validate(variant))
+            out.append(schema.model_validate(variant))
         except ValidationError as exc:
             raise ValueError(f"{source}: {_format(exc)}") from None
     return out
@@ -179,8 +240,8 @@ def parse_override(text: str) -> tuple[tuple[str, ...], Any]:
     return tuple(key.split(".")), yaml.safe_load(value)
 
 
-def load(path: str | Path, overrides: list[str] = ()) -> dict[str, Any]:
-    """Read an experiment YAML, apply `--set` overrides, validate every grid combination.
+def load(path: str | Path, overrides: list[str] = (), schema: type[BaseModel] = ExperimentConfig) -> dict[str, Any]:
+    """Read a config YAML, apply `--set` overrides, validate every grid combination against `schema`.
 
     Returns the raw dict (grids kept as `{grid_search: [...]}`) for Tune.
     """
@@ -194,5 +255,5 @@ def load(path: str | Path, overrides: list[str] = ()) -> dict[str, Any]:
     for text in overrides:
         key, value = parse_override(text)
         _set_path(raw, key, value)
-    validate(raw, source=str(path))
+    validate(raw, source=str(path), schema=schema)
     return raw

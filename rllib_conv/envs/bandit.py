@@ -20,7 +20,13 @@ import numpy as np
 from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
-from rllib_conv.envs.spaces import MASK_KEY, OBS_KEY, check_choice, masked_observation_space, validate_action
+from rllib_conv.envs.spaces import (
+    MASK_KEY,
+    OBS_KEY,
+    check_choice,
+    masked_observation_space,
+    validate_action,
+)
 
 PAPER_CONTEXTS = 4
 PAPER_ARMS = 8

@@ -27,7 +27,13 @@ from gymnasium import spaces
 from pettingzoo import AECEnv
 from pettingzoo.utils import AgentSelector
 
-from rllib_conv.envs.spaces import MASK_KEY, OBS_KEY, check_choice, masked_observation_space, validate_action
+from rllib_conv.envs.spaces import (
+    MASK_KEY,
+    OBS_KEY,
+    check_choice,
+    masked_observation_space,
+    validate_action,
+)
 
 NUM_CELLS = 4
 NUM_MOVES = 6

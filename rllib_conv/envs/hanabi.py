@@ -34,7 +34,13 @@ from gymnasium import spaces as gym_spaces
 from hanabi_learning_environment import pyhanabi
 from pettingzoo import AECEnv
 
-from rllib_conv.envs.spaces import MASK_KEY, OBS_KEY, check_choice, masked_observation_space, validate_action
+from rllib_conv.envs.spaces import (
+    MASK_KEY,
+    OBS_KEY,
+    check_choice,
+    masked_observation_space,
+    validate_action,
+)
 
 ENV_NAME = "hanabi_v0"
 

@@ -2,7 +2,13 @@
 
 from rllib_conv.modules.fixed_partner import FixedPartnerModule
 from rllib_conv.modules.mapping import PartnerMapping
-from rllib_conv.modules.multi import AGG_HEAD_ID, TASK_ID, ConventionMultiRLModule, ego_id, partner_id
+from rllib_conv.modules.multi import (
+    AGG_HEAD_ID,
+    TASK_ID,
+    ConventionMultiRLModule,
+    ego_id,
+    partner_id,
+)
 from rllib_conv.modules.partner_head import PartnerHeadModule
 from rllib_conv.modules.task_module import TaskModule
 

@@ -14,7 +14,15 @@ from typing import Any
 
 import numpy as np
 
-from rllib_conv.envs.blocks import BLUE, HIDDEN, NUM_CELLS, PASS, RED, block_cell, decode_observation
+from rllib_conv.envs.blocks import (
+    BLUE,
+    HIDDEN,
+    NUM_CELLS,
+    PASS,
+    RED,
+    block_cell,
+    decode_observation,
+)
 from rllib_conv.partners.base import Partner
 from rllib_conv.partners.kinds import register_kind
 

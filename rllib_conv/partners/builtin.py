@@ -5,8 +5,15 @@ from __future__ import annotations
 from functools import partial
 
 from rllib_conv.envs.bandit import PAPER_CONTEXTS, paper_prizes
-from rllib_conv.partners.bandit import hand_designed_partners, random_convention_partners
-from rllib_conv.partners.blocks import TEST_PERMUTATIONS, TRAIN_PERMUTATIONS, PermutationPartner
+from rllib_conv.partners.bandit import (
+    hand_designed_partners,
+    random_convention_partners,
+)
+from rllib_conv.partners.blocks import (
+    TEST_PERMUTATIONS,
+    TRAIN_PERMUTATIONS,
+    PermutationPartner,
+)
 from rllib_conv.partners.hanabi import HanabiRulePartner, RandomLegalPartner
 from rllib_conv.partners.population import Population, from_partners, register_builtin
 from rllib_conv.partners.user_study import load_user_study, user_study_partners

@@ -12,7 +12,12 @@ from typing import Any
 
 import numpy as np
 
-from rllib_conv.envs.hanabi import HanabiMoveIds, card_count, decode_card_knowledge, validate_config
+from rllib_conv.envs.hanabi import (
+    HanabiMoveIds,
+    card_count,
+    decode_card_knowledge,
+    validate_config,
+)
 from rllib_conv.partners.base import Partner
 from rllib_conv.partners.kinds import register_kind
 

@@ -8,7 +8,9 @@ A population is stored as a small JSON manifest (YAML is read too):
                    "params": {"arms": [0, 1, 2, 3]}, "split": "train",
                    "checkpoint": null, "seed": null, "score": null}, ...]}
 
-`checkpoint`, `seed` and `score` are filled in for partners trained by self-play.
+`checkpoint`, `seed` and `score` are filled in for partners trained by self-play, and
+`counterpart` holds the spec of the other seat of the pair (for cross-play). Relative
+checkpoint paths are relative to the manifest's folder, so a population folder can move.
 Built-in populations are addressable by name (`names()`); `get(name_or_path)` also
 loads a manifest from disk.
 """
@@ -29,6 +31,7 @@ from rllib_conv.partners.base import Partner
 from rllib_conv.partners.kinds import partner_from_spec
 
 Split = Literal["train", "test"]
+MANIFEST_FILE = "population.json"
 
 
 class PartnerEntry(BaseModel):
@@ -43,10 +46,23 @@ class PartnerEntry(BaseModel):
     checkpoint: str | None = None
     seed: int | None = None
     score: float | None = None
+    counterpart: dict[str, Any] | None = None
 
     def build(self) -> Partner:
         """Return the `Partner` this entry describes."""
         return partner_from_spec({"name": self.name, "kind": self.kind, "params": self.params})
+
+    def resolve_paths(self, base: Path) -> None:
+        """Make relative `checkpoint` paths (entry, params, counterpart) absolute against `base`."""
+
+        def absolute(p: str | None) -> str | None:
+            return p if p is None or Path(p).is_absolute() else str((base / p).resolve())
+
+        self.checkpoint = absolute(self.checkpoint)
+        if "checkpoint" in self.params:
+            self.params["checkpoint"] = absolute(self.params["checkpoint"])
+        if self.counterpart and "checkpoint" in self.counterpart.get("params", {}):
+            self.counterpart["params"]["checkpoint"] = absolute(self.counterpart["params"]["checkpoint"])
 
 
 class Population(BaseModel):
@@ -93,8 +109,14 @@ class Population(BaseModel):
 
     @classmethod
     def load(cls, path: str | Path) -> "Population":
-        """Read and validate a JSON or YAML manifest; ValueError names the file and the bad key."""
+        """Read and validate a JSON or YAML manifest (or a folder holding `population.json`).
+
+        Relative checkpoint paths are taken relative to the manifest's folder. ValueError
+        names the file and the bad key.
+        """
         path = Path(path)
+        if path.is_dir():
+            path = path / MANIFEST_FILE
         if not path.is_file():
             raise ValueError(f"population manifest {str(path)!r} does not exist")
         try:
@@ -105,6 +127,8 @@ class Population(BaseModel):
             pop = cls.model_validate(data)
         except ValidationError as exc:
             raise ValueError(f"population manifest {str(path)!r}: {_describe(exc)}") from None
+        for entry in pop.partners:
+            entry.resolve_paths(path.parent)
         pop.validate_partners()
         return pop
 

@@ -10,8 +10,12 @@ from ray.rllib.core.rl_module.multi_rl_module import MultiRLModuleSpec
 from ray.rllib.core.rl_module.rl_module import RLModuleSpec
 
 from rllib_conv import envs, partners
-from rllib_conv.config import ExperimentConfig
-from rllib_conv.envs.rllib_adapter import PettingZooMultiAgentEnv, RLlibGame, game_env_config
+from rllib_conv.config import ExperimentConfig, PPOSettings, RunSettings
+from rllib_conv.envs.rllib_adapter import (
+    PettingZooMultiAgentEnv,
+    RLlibGame,
+    game_env_config,
+)
 from rllib_conv.learners.marginal_learner import MarginalPPOLearner
 from rllib_conv.modules import (
     AGG_HEAD_ID,
@@ -88,28 +92,54 @@ def module_specs(setup: EgoSetup) -> dict[str, RLModuleSpec]:
     return specs
 
 
+def base_ppo_config(game: str, env_config: dict, ppo: PPOSettings, run: RunSettings, seed: int, batch_size: int) -> PPOConfig:
+    """The PPOConfig pieces shared by ego and self-play training (env, runners, learner, PPO)."""
+    return (
+        PPOConfig()
+        .environment(
+            RLlibGame,
+            env_config=game_env_config(game, env_config),
+            # RLlib's checker steps the env with unmasked random actions, which our games
+            # rightly reject as illegal; the games are tested with PettingZoo's own checks.
+            disable_env_checking=True,
+        )
+        .env_runners(
+            num_env_runners=run.num_env_runners,
+            num_envs_per_env_runner=run.num_envs_per_env_runner,
+            rollout_fragment_length="auto",
+            # RLlib 2.60 converts every finished episode to numpy again on every sampling
+            # step (quadratic in episodes per sample call); one-step games suffer most.
+            episodes_to_numpy=False,
+        )
+        .training(
+            lr=ppo.lr,
+            gamma=ppo.gamma,
+            lambda_=ppo.gae_lambda,
+            clip_param=ppo.clip_param,
+            entropy_coeff=ppo.entropy_coeff if isinstance(ppo.entropy_coeff, float) else [list(p) for p in ppo.entropy_coeff],
+            vf_loss_coeff=ppo.vf_loss_coeff,
+            grad_clip=ppo.grad_clip,
+            grad_clip_by="global_norm",
+            train_batch_size_per_learner=batch_size,
+            minibatch_size=ppo.minibatch_size,
+            num_epochs=ppo.num_epochs,
+            use_kl_loss=False,
+            kl_coeff=0.0,
+            # The paper's code (SB3) does not clip the value loss; RLlib's default of 10
+            # would clip every blocks return (up to 20) and stall the critic.
+            vf_clip_param=math.inf,
+        )
+        .debugging(seed=seed)
+    )
+
+
 def build_ppo_config(setup: EgoSetup) -> PPOConfig:
     """Return the PPOConfig training the ego against `setup`'s training partners."""
     exp, ppo = setup.exp, setup.exp.ppo
     specs = module_specs(setup)
     mapping = PartnerMapping([e.name for e in setup.train], setup.ego_agent, setup.partner_agent, shared_head=exp.method == "agg")
     return (
-        PPOConfig()
-        .environment(
-            RLlibGame,
-            env_config=game_env_config(setup.population.env, setup.env_config),
-            # RLlib's checker steps the env with unmasked random actions, which our games
-            # rightly reject as illegal; the games are tested with PettingZoo's own checks.
-            disable_env_checking=True,
-        )
-        .env_runners(
-            num_env_runners=exp.run.num_env_runners,
-            num_envs_per_env_runner=exp.run.num_envs_per_env_runner,
-            rollout_fragment_length="auto",
-            # RLlib 2.60 converts every finished episode to numpy again on every sampling
-            # step (quadratic in episodes per sample call); one-step games suffer most.
-            episodes_to_numpy=False,
-        )
+        base_ppo_config(setup.population.env, setup.env_config, ppo, exp.run, exp.seed, ppo.rollout_per_partner * len(setup.train))
         .multi_agent(
             policies=set(specs),
             policy_mapping_fn=mapping,
@@ -120,23 +150,4 @@ def build_ppo_config(setup: EgoSetup) -> PPOConfig:
             learner_class=MarginalPPOLearner,
             learner_config_dict={"lam": exp.lam, "freeze": list(exp.freeze), "adam_eps": ppo.adam_eps},
         )
-        .training(
-            lr=ppo.lr,
-            gamma=ppo.gamma,
-            lambda_=ppo.gae_lambda,
-            clip_param=ppo.clip_param,
-            entropy_coeff=ppo.entropy_coeff,
-            vf_loss_coeff=ppo.vf_loss_coeff,
-            grad_clip=ppo.grad_clip,
-            grad_clip_by="global_norm",
-            train_batch_size_per_learner=ppo.rollout_per_partner * len(setup.train),
-            minibatch_size=ppo.minibatch_size,
-            num_epochs=ppo.num_epochs,
-            use_kl_loss=False,
-            kl_coeff=0.0,
-            # The paper's code (SB3) does not clip the value loss; RLlib's default of 10
-            # would clip every blocks return (up to 20) and stall the critic.
-            vf_clip_param=math.inf,
-        )
-        .debugging(seed=exp.seed)
     )

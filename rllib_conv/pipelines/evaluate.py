@@ -15,6 +15,7 @@ from rllib_conv.envs.oracles import oracle_for
 from rllib_conv.modules.multi import ConventionMultiRLModule
 from rllib_conv.partners.base import Partner
 from rllib_conv.partners.play import play_episodes
+from rllib_conv.partners.trained import PolicyPartner
 
 
 def _tensors(obs: np.ndarray, mask: np.ndarray | None) -> tuple[torch.Tensor, torch.Tensor | None]:
@@ -36,25 +37,14 @@ def task_probs(module: ConventionMultiRLModule, obs: np.ndarray, mask: np.ndarra
     return torch.softmax(module.task.policy(o, m).logits, dim=-1).numpy()
 
 
-class EgoHeadPartner(Partner):
-    """A trained ego head as a `Partner`, sampling its actions (seeded), for `play_episodes`."""
+def ego_head_partner(module: ConventionMultiRLModule, head_id: str, seed: int = 0) -> PolicyPartner:
+    """The ego with head `head_id` as a sampling `Partner`, for `play_episodes`."""
 
-    kind = "ego_head"
+    def logits(obs: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+        z, task_logits = module.task.policy(obs, mask)
+        return module[head_id].logits(z, task_logits, mask)
 
-    def __init__(self, module: ConventionMultiRLModule, head_id: str, seed: int = 0) -> None:
-        super().__init__(head_id)
-        self.module, self.head_id = module, head_id
-        self._rng = np.random.default_rng(seed)
-
-    def seed(self, seed: int | None) -> None:
-        self._rng = np.random.default_rng(seed)
-
-    def act(self, observation: np.ndarray, action_mask: np.ndarray) -> int:
-        p = head_probs(self.module, self.head_id, observation[None], action_mask[None])[0]
-        return int(self._rng.choice(len(p), p=p / p.sum()))
-
-    def params(self) -> dict[str, Any]:
-        return {"head_id": self.head_id}
+    return PolicyPartner(head_id, logits, greedy=False, seed=seed)
 
 
 def bandit_exact_return(module: ConventionMultiRLModule, head_id: str, env: CollaborativeBanditEnv, partner: Partner) -> float:
@@ -84,7 +74,7 @@ def ego_return(
     also scored by `episodes` sampled episodes (`mean`, `stderr`).
     """
     env = envs.make(env_name, **env_config)
-    scores = play_episodes(env, {ego_agent: EgoHeadPartner(module, head_id, seed), partner_agent: partner}, episodes, seed)
+    scores = play_episodes(env, {ego_agent: ego_head_partner(module, head_id, seed), partner_agent: partner}, episodes, seed)
     out = {"mean": float(scores.mean()), "stderr": float(scores.std(ddof=1) / np.sqrt(len(scores))) if len(scores) > 1 else 0.0}
     if isinstance(env, CollaborativeBanditEnv):
         out["exact"] = bandit_exact_return(module, head_id, env, partner)

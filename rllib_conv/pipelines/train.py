@@ -107,17 +107,22 @@ class EgoTrainable(tune.Trainable):
 
 
 class ProgressLine(Callback):
-    """Print one line per trial iteration: steps, mean and worst partner return, regulariser."""
+    """Print one line per trial iteration: steps, returns (mean and worst partner), regulariser, gate."""
+
+    FIELDS = (("return_mean", "return"), ("train_return", "return"), (MARGINAL_REG_KEY, "reg"), ("gate_check", "gate check"), ("gate_score", "gate"))
 
     def on_trial_result(self, iteration: int, trials: list, trial: Any, result: dict[str, Any], **info: Any) -> None:
-        returns = [v for k, v in result.items() if k.startswith("return/")]
-        worst = f" min {min(returns):.3f}" if returns else ""
-        print(
-            f"[{trial.trial_id}] iter {result.get('training_iteration', 0):4d}  steps {result.get('env_steps', 0):8d}  "
-            f"return {result.get('return_mean', math.nan):.3f}{worst}  reg {result.get(MARGINAL_REG_KEY, math.nan):.4f}  "
-            f"{result.get('time_total_s', 0.0):7.1f}s",
-            flush=True,
-        )
+        parts = [f"[{trial.trial_id}] iter {result.get('training_iteration', 0):4d}", f"steps {result.get('env_steps', 0):8d}"]
+        for key, label in self.FIELDS:
+            value = result.get(key)
+            if isinstance(value, (int, float)) and not math.isnan(value):
+                parts.append(f"{label} {value:.3f}")
+            if key == "return_mean":
+                returns = [v for k, v in result.items() if k.startswith("return/")]
+                if returns:
+                    parts.append(f"min {min(returns):.3f}")
+        parts.append(f"{result.get('time_total_s', 0.0):7.1f}s")
+        print("  ".join(parts), flush=True)
 
 
 def to_param_space(raw: Any) -> Any:

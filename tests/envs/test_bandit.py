@@ -7,7 +7,12 @@ import pytest
 from pettingzoo.test import parallel_api_test, parallel_seed_test
 
 from rllib_conv import envs
-from rllib_conv.envs.bandit import good_arms, oracle_marginals, paper_prizes, user_study_prizes
+from rllib_conv.envs.bandit import (
+    good_arms,
+    oracle_marginals,
+    paper_prizes,
+    user_study_prizes,
+)
 
 CONFIGS = [
     {"symmetric": m, "new_task": new} for m in range(5) for new in (False, True)

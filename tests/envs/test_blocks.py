@@ -7,7 +7,17 @@ import pytest
 from pettingzoo.test import api_test, seed_test
 
 from rllib_conv import envs
-from rllib_conv.envs.blocks import BLUE, EMPTY, GOALS, HIDDEN, PASS, RED, REMOVE, decode_observation, final_reward
+from rllib_conv.envs.blocks import (
+    BLUE,
+    EMPTY,
+    GOALS,
+    HIDDEN,
+    PASS,
+    RED,
+    REMOVE,
+    decode_observation,
+    final_reward,
+)
 
 
 def play(moves: list[int], goal: tuple[int, int] = (0, 3), new_task: bool = False):

@@ -5,7 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rllib_conv.envs.hanabi import HanabiEnv, HanabiMoveIds, card_knowledge_layout, decode_card_knowledge
+from rllib_conv.envs.hanabi import (
+    HanabiEnv,
+    HanabiMoveIds,
+    card_knowledge_layout,
+    decode_card_knowledge,
+)
 from rllib_conv.partners.base import Partner
 from rllib_conv.partners.hanabi import HanabiRulePartner, RandomLegalPartner
 from rllib_conv.partners.kinds import kinds, partner_from_spec

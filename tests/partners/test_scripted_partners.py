@@ -15,7 +15,13 @@ from rllib_conv.partners.bandit import (
     hand_designed_partners,
     random_convention_partners,
 )
-from rllib_conv.partners.blocks import TEST_PERMUTATIONS, TRAIN_PERMUTATIONS, BlocksLeader, PermutationPartner, derangements
+from rllib_conv.partners.blocks import (
+    TEST_PERMUTATIONS,
+    TRAIN_PERMUTATIONS,
+    BlocksLeader,
+    PermutationPartner,
+    derangements,
+)
 
 
 @pytest.mark.parametrize("symmetric", range(5))

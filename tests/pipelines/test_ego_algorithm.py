@@ -8,7 +8,6 @@ import sys
 import textwrap
 
 import numpy as np
-import pytest
 import torch
 
 from rllib_conv.config import ExperimentConfig
@@ -128,7 +127,7 @@ def test_checkpoint_round_trip_in_a_fresh_process(ray_session, tmp_path) -> None
         """
     )
     out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300)
-    line = next((l for l in out.stdout.splitlines() if l.startswith("RESULT")), None)
+    line = next((ln for ln in out.stdout.splitlines() if ln.startswith("RESULT")), None)
     assert line is not None, out.stderr[-3000:]
     loaded = json.loads(line[len("RESULT") :])
     for h in heads:

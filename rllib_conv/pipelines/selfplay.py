@@ -1,0 +1,244 @@
+"""Self-play partner populations: train pairs through Tune, keep the partner seat of each pair that passes.
+
+Each pair is one Tune trial (`SelfPlayTrainable`, seed `seed + pair`). Each seat has its
+own policy module (`seat@player_0`, `seat@player_1`), or one module plays both seats
+(`seat@all`, Hanabi; the env draws who moves first). Every `gate.check_every`
+iterations the pair plays `gate.check_episodes` episodes as fixed partners would
+(greedy by default); when that clears `gate.score` a `gate.episodes` evaluation decides.
+A pair stops when it passes or when its step budget runs out; one that never passes is
+reported and left out of the population.
+
+The population folder is self-contained: `population.json`, `partners/<name>/` (the kept
+seat's module), `counterparts/<name>/` (its self-play counterpart, for cross-play) and
+`selfplay_report.csv` (every pair: seed, split, passed, score, steps to gate, wall time).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+from ray import tune
+from ray.rllib.algorithms.ppo import PPOConfig
+from ray.rllib.core.rl_module.multi_rl_module import MultiRLModuleSpec
+from ray.rllib.core.rl_module.rl_module import RLModuleSpec
+from ray.tune.execution.placement_groups import PlacementGroupFactory
+
+from rllib_conv import envs
+from rllib_conv.config import SelfPlayConfig, validate
+from rllib_conv.envs.rllib_adapter import PettingZooMultiAgentEnv
+from rllib_conv.learners.marginal_learner import MarginalPPOLearner
+from rllib_conv.modules.task_module import TaskModule
+from rllib_conv.partners.play import play_episodes
+from rllib_conv.partners.population import PartnerEntry, Population
+from rllib_conv.partners.trained import PolicyPartner
+from rllib_conv.pipelines.algorithm import base_ppo_config
+from rllib_conv.pipelines.train import ProgressLine, init_ray
+
+SEAT_PREFIX = "seat@"
+SHARED_SEAT = "seat@all"
+REPORT_FILE = "selfplay.json"
+RL_MODULE_DIR = Path("learner_group") / "learner" / "rl_module"
+
+
+def seat_module_id(cfg: SelfPlayConfig, agent: str) -> str:
+    """Module ID of the policy playing `agent`'s seat."""
+    return SHARED_SEAT if cfg.shared_seats else SEAT_PREFIX + agent
+
+
+class SeatMapping:
+    """Policy mapping for self-play: each seat to its own module, or every seat to one."""
+
+    def __init__(self, shared: bool) -> None:
+        self.shared = shared
+
+    def __call__(self, agent_id: str, episode: Any, **kwargs: Any) -> str:
+        return SHARED_SEAT if self.shared else SEAT_PREFIX + agent_id
+
+
+def game_agents(cfg: SelfPlayConfig) -> list[str]:
+    """The game's two agents; ValueError unless `partner_agent` is one of them."""
+    agents = list(envs.make(cfg.env, **cfg.env_config).possible_agents)
+    if len(agents) != 2 or cfg.partner_agent not in agents:
+        raise ValueError(f"partner_agent {cfg.partner_agent!r} must be one of the game's two agents {agents}")
+    return agents
+
+
+def build_selfplay_config(cfg: SelfPlayConfig) -> PPOConfig:
+    """Return the PPOConfig training pair `cfg.pair` by self-play."""
+    env = PettingZooMultiAgentEnv(envs.make(cfg.env, **cfg.env_config))
+    sizes = {"hidden": cfg.model.hidden, "z_dim": cfg.model.z_dim}
+    specs = {
+        seat_module_id(cfg, a): RLModuleSpec(
+            module_class=TaskModule, observation_space=env.observation_spaces[a], action_space=env.action_spaces[a], model_config=sizes
+        )
+        for a in game_agents(cfg)
+    }
+    return (
+        base_ppo_config(cfg.env, cfg.env_config, cfg.ppo, cfg.run, cfg.seed + cfg.pair, cfg.ppo.rollout_per_partner)
+        .multi_agent(policies=set(specs), policy_mapping_fn=SeatMapping(cfg.shared_seats), policies_to_train=list(specs))
+        .rl_module(rl_module_spec=MultiRLModuleSpec(rl_module_specs=specs))
+        .learners(learner_class=MarginalPPOLearner, learner_config_dict={"lam": 0.0, "adam_eps": cfg.ppo.adam_eps})
+    )
+
+
+def seat_partner(module: Any, module_id: str, greedy: bool, seed: int = 0) -> PolicyPartner:
+    """The seat policy `module_id` of a (multi-)module as a `Partner`."""
+    policy = module[module_id]
+    return PolicyPartner(module_id, lambda obs, mask: policy.policy(obs, mask).logits, greedy, seed)
+
+
+def selfplay_score(module: Any, cfg: SelfPlayConfig, episodes: int, seed: int) -> float:
+    """Mean self-play return of the pair's seat policies, acting as fixed partners would."""
+    env = envs.make(cfg.env, **cfg.env_config)
+    seats = {a: seat_partner(module, seat_module_id(cfg, a), cfg.greedy_partners, seed + i) for i, a in enumerate(env.possible_agents)}
+    return float(play_episodes(env, seats, episodes, seed).mean())
+
+
+class SelfPlayTrainable(tune.Trainable):
+    """One self-play pair: trains until it passes the score gate or its step budget runs out."""
+
+    def setup(self, config: dict[str, Any]) -> None:
+        import torch
+
+        torch.set_num_threads(1)
+        self.cfg = SelfPlayConfig.model_validate(config).resolve()
+        self.algo = build_selfplay_config(self.cfg).build_algo()
+        self.passed, self.score, self.steps_to_gate = False, math.nan, None
+        self._start = time.perf_counter()
+
+    def step(self) -> dict[str, Any]:
+        cfg, gate = self.cfg, self.cfg.gate
+        result = self.algo.train()
+        runners = result.get("env_runners", {})
+        steps = int(runners.get("num_env_steps_sampled_lifetime", 0))
+        first = cfg.partner_agent  # shared rewards: any seat's return is the team's
+        out = {"env_steps": steps, "train_return": float(runners.get("agent_episode_returns_mean", {}).get(first, math.nan))}
+        budget_spent = steps >= cfg.run.timesteps
+        module = self.algo.env_runner.module
+        iteration = self.iteration + 1
+        if iteration % gate.check_every == 0 or budget_spent:
+            out["gate_check"] = selfplay_score(module, cfg, gate.check_episodes, seed=100_000 + iteration)
+            if out["gate_check"] >= gate.score or budget_spent:
+                self.score = selfplay_score(module, cfg, gate.episodes, seed=cfg.seed + cfg.pair)
+                self.passed = self.score >= gate.score
+                if self.passed:
+                    self.steps_to_gate = steps
+        out.update({"gate_score": self.score, "passed": self.passed, "done": self.passed or budget_spent})
+        if out["done"]:
+            report = {
+                "pair": cfg.pair,
+                "seed": cfg.seed + cfg.pair,
+                "passed": self.passed,
+                "score": self.score,
+                "steps_to_gate": self.steps_to_gate,
+                "env_steps": steps,
+                "wall_s": time.perf_counter() - self._start,
+            }
+            Path(self.logdir, REPORT_FILE).write_text(json.dumps(report, indent=2) + "\n")
+            out.update({k: v for k, v in report.items() if k not in out})
+        return out
+
+    def save_checkpoint(self, checkpoint_dir: str) -> None:
+        self.algo.save_to_path(checkpoint_dir)
+
+    def load_checkpoint(self, checkpoint: str) -> None:
+        self.algo.restore_from_path(checkpoint)
+
+    def cleanup(self) -> None:
+        self.algo.stop()
+
+    @classmethod
+    def default_resource_request(cls, config: dict[str, Any]) -> PlacementGroupFactory:
+        runners = int(config.get("run", {}).get("num_env_runners", 0) or 0)
+        return PlacementGroupFactory([{"CPU": 1}] + [{"CPU": 1}] * runners)
+
+
+def write_population(cfg: SelfPlayConfig, results: tune.ResultGrid, folder: Path) -> tuple[Population, pd.DataFrame]:
+    """Copy each passing pair's seat modules into `folder` and write the manifest and report."""
+    agents = game_agents(cfg)
+    counterpart_agent = next(a for a in agents if a != cfg.partner_agent)
+    rows, entries = [], []
+    for r in sorted(results, key=lambda r: r.config["pair"]):
+        pair = r.config["pair"]
+        name = f"sp{pair:02d}"
+        split = "train" if pair < cfg.train_pairs else "test"
+        report_path = Path(r.path) / REPORT_FILE
+        report = json.loads(report_path.read_text()) if report_path.is_file() else {"pair": pair, "passed": False, "error": str(r.error)}
+        rows.append({"partner": name, "split": split, **report})
+        if not report.get("passed") or r.checkpoint is None:
+            continue
+        modules = Path(r.checkpoint.path) / RL_MODULE_DIR
+        for sub, agent in (("partners", cfg.partner_agent), ("counterparts", counterpart_agent)):
+            shutil.copytree(modules / seat_module_id(cfg, agent), folder / sub / name)
+        params = {"greedy": cfg.greedy_partners, "seed": report["seed"]}
+        entries.append(
+            PartnerEntry(
+                name=name,
+                kind="trained_policy",
+                params={"checkpoint": f"partners/{name}", **params},
+                split=split,
+                checkpoint=f"partners/{name}",
+                seed=report["seed"],
+                score=report["score"],
+                counterpart={"name": f"{name}-counterpart", "kind": "trained_policy", "params": {"checkpoint": f"counterparts/{name}", **params}},
+            )
+        )
+    population = Population(
+        name=cfg.name,
+        env=cfg.env,
+        env_config=cfg.env_config,
+        partner_agent=cfg.partner_agent,
+        description=f"self-play partners (seat {cfg.partner_agent}), gate {cfg.gate.score} over {cfg.gate.episodes} episodes",
+        partners=entries,
+    )
+    population.save(folder / "population.json")
+    report = pd.DataFrame(rows)
+    report.to_csv(folder / "selfplay_report.csv", index=False)
+    return population, report
+
+
+def train_population(
+    raw: dict[str, Any], out: str | Path = "populations", storage: str | Path = "runs", address: str | None = None, overwrite: bool = False
+) -> tuple[Population, pd.DataFrame]:
+    """Train every pair of the self-play config `raw` and write the population to `out/<name>/`.
+
+    The population is assembled in a temporary folder and moved into place only when
+    complete, so a crash never leaves a half-written population (or replaces an old one).
+    """
+    cfg = validate(raw, schema=SelfPlayConfig)[0]
+    game_agents(cfg)
+    target = Path(out).resolve() / cfg.name
+    if target.exists() and not overwrite:
+        raise ValueError(f"population folder {str(target)!r} already exists; choose another name or pass --overwrite")
+    init_ray(address)
+    pairs = cfg.train_pairs + cfg.test_pairs
+    tuner = tune.Tuner(
+        SelfPlayTrainable,
+        param_space={**raw, "pair": tune.grid_search(list(range(pairs)))},
+        run_config=tune.RunConfig(
+            name=f"selfplay-{cfg.name}",
+            storage_path=str(Path(storage).resolve()),
+            callbacks=[ProgressLine()],
+            verbose=0,
+            sync_config=tune.SyncConfig(sync_artifacts=True),
+            checkpoint_config=tune.CheckpointConfig(num_to_keep=1, checkpoint_frequency=cfg.run.checkpoint_every, checkpoint_at_end=True),
+        ),
+    )
+    results = tuner.fit()
+    target.parent.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(prefix=f".{cfg.name}.", dir=target.parent))
+    try:
+        population, report = write_population(cfg, results, staging)
+        if target.exists():
+            shutil.rmtree(target)
+        staging.rename(target)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+    return Population.load(target / "population.json"), report

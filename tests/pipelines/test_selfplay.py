@@ -1,0 +1,151 @@
+"""Self-play populations: learning, the score gate, save/load, use as fixed partners, cross-play."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+
+from rllib_conv import config, partners
+from rllib_conv.config import ExperimentConfig, SelfPlayConfig
+from rllib_conv.envs.bandit import good_arms, paper_prizes
+from rllib_conv.modules import partner_id
+from rllib_conv.partners.trained import TrainedPolicyPartner
+from rllib_conv.pipelines.algorithm import build_ppo_config, resolve
+from rllib_conv.pipelines.crossplay import crossplay, write_crossplay
+from rllib_conv.pipelines.evaluate import bandit_states
+from rllib_conv.pipelines.selfplay import train_population
+
+OBS, MASK = bandit_states({"symmetric": 2})
+
+
+def selfplay_raw(**overrides) -> dict:
+    raw = config.load("tune_configs/selfplay_bandit.yaml", ["train_pairs=2", "test_pairs=1", "run.timesteps=12000"], schema=SelfPlayConfig)
+    raw.update(overrides)
+    return raw
+
+
+@pytest.fixture(scope="module")
+def trained(ray_session, tmp_path_factory):
+    """A 3-pair bandit self-play population (2 train, 1 test), trained once for this module."""
+    root = tmp_path_factory.mktemp("selfplay")
+    population, report = train_population(selfplay_raw(name="sp-test"), out=root / "pops", storage=root / "runs")
+    return root, population, report
+
+
+def test_pairs_pass_the_gate_with_one_convention_per_context(trained) -> None:
+    root, population, report = trained
+    assert report["passed"].all() and len(population.partners) == 3
+    assert [e.split for e in population.partners] == ["train", "train", "test"]
+    good = good_arms(paper_prizes(2))
+    for entry in population.partners:
+        assert entry.score >= 0.95 and entry.steps_to_gate if hasattr(entry, "steps_to_gate") else entry.score >= 0.95
+        partner = entry.build()
+        counterpart = partners.partner_from_spec(entry.counterpart)
+        arms, answer = partner.act_batch(OBS, MASK), counterpart.act_batch(OBS, MASK)
+        # One convention per context: a good arm, and the pair's other seat picks the same one.
+        assert all(a in good[c] for c, a in enumerate(arms)) and arms.tolist() == answer.tolist()
+    assert (report["steps_to_gate"] <= 12000).all()
+
+
+def test_population_folder_is_self_contained_and_loads_in_a_fresh_process(trained, tmp_path) -> None:
+    root, population, _ = trained
+    moved = tmp_path / "moved"
+    shutil.copytree(root / "pops" / "sp-test", moved)  # relative paths: the folder can move
+    here = {e.name: TrainedPolicyPartner(e.name, e.params["checkpoint"]).probs(OBS, MASK).tolist() for e in population.partners}
+    script = textwrap.dedent(
+        f"""
+        import json
+        from rllib_conv import partners
+        from rllib_conv.pipelines.evaluate import bandit_states
+        obs, mask = bandit_states({{"symmetric": 2}})
+        pop = partners.get({str(moved)!r})
+        print("RESULT" + json.dumps({{e.name: e.build().probs(obs, mask).tolist() for e in pop.partners}}))
+        """
+    )
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    line = next((ln for ln in out.stdout.splitlines() if ln.startswith("RESULT")), None)
+    assert line is not None, out.stderr[-2000:]
+    there = json.loads(line[len("RESULT") :])
+    assert there.keys() == here.keys()
+    for name in here:
+        np.testing.assert_allclose(there[name], here[name], atol=1e-7)
+    manifest = json.loads((moved / "population.json").read_text())
+    assert all(not p["params"]["checkpoint"].startswith("/") for p in manifest["partners"])
+
+
+def test_trained_population_plugs_into_ego_training(trained) -> None:
+    root, population, _ = trained
+    exp = ExperimentConfig(population=str(root / "pops" / "sp-test"), lam=0.5, model={"hidden": 8}, ppo={"rollout_per_partner": 32, "num_epochs": 1})
+    setup = resolve(exp)
+    algo = build_ppo_config(setup).build_algo()
+    batch = {"obs": {"observations": OBS, "action_mask": MASK.astype(np.float32)}}
+    try:
+        before = {e.name: algo.env_runner.module[partner_id(e.name)].forward_inference(batch)["actions"].tolist() for e in setup.train}
+        algo.train()
+        after = {e.name: algo.env_runner.module[partner_id(e.name)].forward_inference(batch)["actions"].tolist() for e in setup.train}
+        assert isinstance(algo.env_runner.module[partner_id(setup.train[0].name)].partner, TrainedPolicyPartner)
+    finally:
+        algo.stop()
+    assert before == after == {e.name: e.build().act_batch(OBS, MASK).tolist() for e in setup.train}
+
+
+def test_pairs_that_miss_the_gate_are_reported_not_kept(ray_session, tmp_path) -> None:
+    raw = selfplay_raw(name="too-short")
+    raw.update({"train_pairs": 1, "test_pairs": 0, "run": {"timesteps": 128}, "gate": {"score": 0.95, "episodes": 100, "check_every": 1, "check_episodes": 50}})
+    population, report = train_population(raw, out=tmp_path / "pops", storage=tmp_path / "runs")
+    assert report["passed"].tolist() == [False] and population.partners == []
+    assert pd.read_csv(tmp_path / "pops" / "too-short" / "selfplay_report.csv")["passed"].tolist() == [False]
+    # An existing population is never replaced by accident.
+    with pytest.raises(ValueError, match="already exists"):
+        train_population(raw, out=tmp_path / "pops", storage=tmp_path / "runs")
+
+
+def test_missing_partner_checkpoint_is_a_clear_error(trained, tmp_path) -> None:
+    root, _, _ = trained
+    broken = tmp_path / "broken"
+    shutil.copytree(root / "pops" / "sp-test", broken)
+    shutil.rmtree(broken / "partners" / "sp01")
+    with pytest.raises(ValueError, match=r"partner 'sp01': checkpoint .*sp01.* does not exist"):
+        partners.get(str(broken))
+
+
+def test_crossplay_matrix_shape_labels_and_diagonal(tmp_path) -> None:
+    pop = partners.get("bandit-s2-hand")
+    matrix = crossplay(pop, pop, episodes=400, seed=0)
+    names = [e.name for e in pop.partners]
+    assert list(matrix.index) == names and list(matrix.columns) == names and matrix.shape == (8, 8)
+    arms = {e.name: np.array(e.params["arms"]) for e in pop.partners}
+    for a in names:
+        for b in names:
+            agree = float(np.mean(arms[a] == arms[b]))  # contexts are uniform: expected score by hand
+            assert abs(matrix.loc[a, b] - agree) < 0.1, (a, b)
+    assert (np.diag(matrix.to_numpy()) == 1.0).all()
+    csv, png = write_crossplay(matrix, tmp_path, "hand")
+    assert pd.read_csv(csv, index_col=0).shape == (8, 8) and png.stat().st_size > 5000
+
+
+def test_crossplay_of_trained_population_has_self_play_on_the_diagonal(trained) -> None:
+    root, population, _ = trained
+    matrix = crossplay(population, population, episodes=200)
+    assert (np.diag(matrix.to_numpy()) >= 0.95).all()
+
+
+def test_crossplay_refuses_different_games() -> None:
+    with pytest.raises(ValueError, match="different games or seats"):
+        crossplay(partners.get("bandit-s2-hand"), partners.get("bandit-s3-hand"))
+
+
+def test_selfplay_configs_are_valid() -> None:
+    for name in ("selfplay_bandit", "selfplay_blocks", "selfplay_hanabi"):
+        path = f"tune_configs/{name}.yaml"
+        cfg = config.validate(config.load(path, schema=SelfPlayConfig), path, schema=SelfPlayConfig)[0]
+        assert cfg.gate.episodes == 1000
+    assert yaml.safe_load(open("tune_configs/selfplay_blocks.yaml"))["gate"]["score"] == 19.0
