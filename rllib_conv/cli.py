@@ -116,6 +116,49 @@ def _cmd_crossplay(args: argparse.Namespace) -> None:
     print(f"wrote {csv} and {png}")
 
 
+def _cmd_adapt(args: argparse.Namespace) -> None:
+    from rllib_conv import config
+    from rllib_conv.pipelines.adapt import run_adaptation
+
+    raw = {"name": args.name, "runs": args.runs, "split": args.split, "train_task": not args.frozen_task}
+    raw.update({k: v for k, v in {"population": args.population, "partners": args.partner, "method": args.method}.items() if v})
+    raw = config.from_dict(raw, args.set, schema=config.AdaptConfig)
+    curves = run_adaptation(raw, out=args.out, storage=args.storage, address=args.address)
+    summary = curves.groupby(["method", "lam", "steps"])[["mean_return", "exact_return"]].mean().unstack("steps")
+    print(summary.round(3).to_string())
+    print(f"wrote {Path(args.out) / (args.name + '.csv')}")
+
+
+def _cmd_zeroshot(args: argparse.Namespace) -> None:
+    import pandas as pd
+
+    from rllib_conv import config
+    from rllib_conv.pipelines.zeroshot import run_zeroshot
+
+    raw = {"name": args.name, "runs": args.runs}
+    if args.new_population:
+        raw["new_population"] = args.new_population
+    raw = config.from_dict(raw, args.set, schema=config.ZeroShotConfig)
+    table = run_zeroshot(raw, out=args.out, storage=args.storage, address=args.address)
+    with pd.option_context("display.width", 200, "display.max_colwidth", 60, "display.float_format", "{:.3f}".format):
+        print(table.drop(columns=["run"]).to_string(index=False))
+    print(f"wrote {Path(args.out) / (args.name + '.csv')}")
+
+
+def _cmd_marginals(args: argparse.Namespace) -> None:
+    import pandas as pd
+
+    from rllib_conv.pipelines.adapt import trial_folders
+    from rllib_conv.pipelines.marginals import marginal_report
+
+    table = marginal_report([t for run in args.runs for t in trial_folders(run)], episodes=args.episodes, seed=args.seed)
+    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+    table.to_csv(args.out, index=False)
+    with pd.option_context("display.width", 200, "display.float_format", "{:.3f}".format):
+        print(table.drop(columns=["run"]).to_string(index=False))
+    print(f"wrote {args.out}")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Return the argument parser of every subcommand."""
     parser = argparse.ArgumentParser(prog="rllib-conv", description=__doc__.splitlines()[0])
@@ -143,6 +186,34 @@ def build_parser() -> argparse.ArgumentParser:
     pt.add_argument("--overwrite", action="store_true", help="replace an existing population of the same name")
     _add_run_args(pt)
     pt.set_defaults(func=_cmd_partners_train)
+
+    p = sub.add_parser("adapt", help="adapt trained egos to new partners (fresh head, task module kept, lam 0)")
+    p.add_argument("runs", nargs="+", help="trained-ego trial folders or experiment folders")
+    p.add_argument("--partner", action="append", help="adapt to this partner only (repeatable); default: the test split")
+    p.add_argument("--population", help="population of the new partners (default: the one each run trained on)")
+    p.add_argument("--split", default="test", choices=["train", "test"])
+    p.add_argument("--method", choices=["scratch"], help="adapt a fresh network instead (learning from scratch)")
+    p.add_argument("--frozen-task", action="store_true", help="keep the task module frozen while adapting")
+    p.add_argument("--name", default="adapt", help="name of the output CSV and Tune run")
+    p.add_argument("--out", default="adaptation", help="folder for the curves CSV (default: adaptation)")
+    _add_run_args(p)
+    p.set_defaults(func=_cmd_adapt)
+
+    p = sub.add_parser("zeroshot", help="zero-shot coordination on the new task with known partners")
+    p.add_argument("runs", nargs="+", help="trained-ego trial folders or experiment folders")
+    p.add_argument("--new-task", action="store_true", help="use the runs' population's -newtask variant (the default)")
+    p.add_argument("--new-population", help="population of the same partners on the new task")
+    p.add_argument("--name", default="zeroshot")
+    p.add_argument("--out", default="zeroshot", help="folder for the results CSV (default: zeroshot)")
+    _add_run_args(p)
+    p.set_defaults(func=_cmd_zeroshot)
+
+    p = sub.add_parser("marginals", help="distance of each run's task module to the true marginals")
+    p.add_argument("runs", nargs="+", help="trained-ego trial folders or experiment folders")
+    p.add_argument("--episodes", type=int, default=200, help="episodes per training partner to collect states (non-bandit games)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", default="marginals/marginals.csv")
+    p.set_defaults(func=_cmd_marginals)
 
     p = sub.add_parser("crossplay", help="pair every member of population A (ego seat) with every member of B")
     p.add_argument("a", help="population name, manifest or folder")

@@ -31,7 +31,9 @@ from pydantic import (
 
 from rllib_conv.envs import names as env_names
 
-Method = Literal["modular", "agg", "no_task_logits", "oracle"]
+Method = Literal["modular", "agg", "no_task_logits", "oracle", "maml"]
+# Methods whose ego is one network for all partners (task module + a single head).
+SINGLE_HEAD_METHODS = ("agg", "maml")
 GRID_KEY = "grid_search"
 
 # The paper's Tables 2-4 and the original code: layer size, rollout steps per partner,
@@ -107,6 +109,18 @@ class RunSettings(_Strict):
     eval_episodes: PositiveInt = 200
 
 
+class MAMLSettings(_Strict):
+    """First-order MAML across training partners (the paper's Table 5 values).
+
+    Each outer step takes the next training partner, runs `inner_iterations` PPO updates
+    (learning rate `ppo.lr`, the paper's inner lr 3e-4) from the meta-weights theta, and
+    moves theta by `outer_step * (adapted - theta)`.
+    """
+
+    inner_iterations: PositiveInt = 4
+    outer_step: float = Field(0.25, gt=0.0, le=1.0)
+
+
 class ExperimentConfig(_Strict):
     """One ego-training experiment: game, partners, method, regulariser, sizes, PPO, run."""
 
@@ -121,10 +135,11 @@ class ExperimentConfig(_Strict):
     model: ModelSettings = Field(default_factory=ModelSettings)
     ppo: PPOSettings = Field(default_factory=PPOSettings)
     run: RunSettings = Field(default_factory=RunSettings)
+    maml: MAMLSettings = Field(default_factory=MAMLSettings)
 
     @model_validator(mode="after")
     def _consistent(self) -> "ExperimentConfig":
-        if self.method in ("no_task_logits", "oracle") and self.lam > 0:
+        if self.method in ("no_task_logits", "oracle", "maml") and self.lam > 0:
             raise ValueError(f"lam must be 0 for method {self.method!r} (it has no learned task logits to regularise)")
         return self
 
@@ -177,6 +192,77 @@ class SelfPlayConfig(_Strict):
         """Return a copy with the game's defaults filled in (see `ExperimentConfig.resolve`)."""
         as_exp = ExperimentConfig(population="-", model=self.model, ppo=self.ppo, run=self.run).resolve(self.env)
         return self.model_copy(update={"model": as_exp.model, "ppo": as_exp.ppo, "run": as_exp.run})
+
+
+class AdaptConfig(_Strict):
+    """Adapting trained egos to new partners: keep the task module, a fresh head, lam 0.
+
+    `runs` are trained-ego trial folders (or experiment folders: every trial in them).
+    Partners are `split` of `population` (default: the population each run trained on),
+    optionally only `partners`. `method: scratch` adapts a fresh network instead. The ego
+    is evaluated before every update (`every` env steps) up to `steps`, `episodes` episodes
+    each (and exactly on the bandit). Unset values take the paper's per-game adaptation
+    settings (`ADAPT_DEFAULTS`); `ppo` overrides the run's PPO settings.
+    """
+
+    name: FolderName = "adapt"
+    runs: list[str]
+    population: str | None = None
+    split: Literal["train", "test"] = "test"
+    partners: list[str] | None = None
+    method: Literal["scratch"] | None = None
+    train_task: bool = True
+    every: PositiveInt | None = None
+    steps: PositiveInt | None = None
+    episodes: PositiveInt = 200
+    ppo: dict[str, Any] = Field(default_factory=dict)
+    seed: int = 0
+    # Set per Tune trial: which run and which partner this trial adapts.
+    run: str | None = None
+    partner: str | None = None
+
+
+# The paper's adaptation protocol: evaluate every `every` env steps up to `steps`; one PPO
+# update of `minibatch_size` x `num_epochs` per `every` steps (Table 3 and the notes).
+ADAPT_DEFAULTS: dict[str, dict[str, int]] = {
+    "bandit": {"every": 16, "steps": 240, "minibatch_size": 16, "num_epochs": 50},
+    "blocks": {"every": 640, "steps": 25_600, "minibatch_size": 160, "num_epochs": 5},
+    "hanabi": {"every": 640, "steps": 25_600, "minibatch_size": 160, "num_epochs": 5},
+}
+
+
+class ZeroShotConfig(_Strict):
+    """Zero-shot coordination on a new task with known partners (the paper's three steps).
+
+    1. Fresh heads for the test partners on the old task, task module frozen (`head_steps`).
+    2. The task module re-trained on the new task with the training partners' heads frozen
+       (`task_steps`, regulariser weight `task_lam`, default the run's lam);
+       `reset_task_logits` re-initialises the task logits layer first, and `task_entropy`
+       adds an entropy bonus, so the new rules get explored.
+    3. The new task module with the test partners' heads, evaluated on the new task with no
+       further training (`episodes` episodes; exactly on the bandit).
+    `new_population` defaults to the run's population + "-newtask".
+    """
+
+    name: FolderName = "zeroshot"
+    runs: list[str]
+    new_population: str | None = None
+    head_steps: PositiveInt | None = None
+    task_steps: PositiveInt | None = None
+    reset_task_logits: bool = True
+    # Trained heads carry some of the old rules too; without exploration the task module
+    # never tries the new rule actions (the original code's 0.49 on the bandit).
+    task_entropy: NonNegativeFloat = 0.05
+    task_lam: NonNegativeFloat | None = None
+    episodes: PositiveInt = 200
+    seed: int = 0
+    run: str | None = None
+
+
+ZEROSHOT_DEFAULTS: dict[str, dict[str, int]] = {
+    "bandit": {"head_steps": 2_560, "task_steps": 10_000},
+    "blocks": {"head_steps": 100_000, "task_steps": 400_000},
+}
 
 
 def _format(exc: ValidationError) -> str:
@@ -240,6 +326,16 @@ def parse_override(text: str) -> tuple[tuple[str, ...], Any]:
     return tuple(key.split(".")), yaml.safe_load(value)
 
 
+def from_dict(raw: dict[str, Any], overrides: list[str] = (), schema: type[BaseModel] = ExperimentConfig, source: str = "arguments") -> dict[str, Any]:
+    """Apply `--set` overrides to `raw` and validate it against `schema`; return the raw dict."""
+    raw = copy.deepcopy(raw)
+    for text in overrides:
+        key, value = parse_override(text)
+        _set_path(raw, key, value)
+    validate(raw, source=source, schema=schema)
+    return raw
+
+
 def load(path: str | Path, overrides: list[str] = (), schema: type[BaseModel] = ExperimentConfig) -> dict[str, Any]:
     """Read a config YAML, apply `--set` overrides, validate every grid combination against `schema`.
 
@@ -249,11 +345,7 @@ def load(path: str | Path, overrides: list[str] = (), schema: type[BaseModel] = 
     if not path.is_file():
         raise ValueError(f"config file {str(path)!r} does not exist")
     try:
-        raw = yaml.safe_load(path.read_text()) or {}
+        raw = yaml.safe_load(path.read_text())
     except yaml.YAMLError as exc:
         raise ValueError(f"config file {str(path)!r} is not valid YAML: {exc}") from None
-    for text in overrides:
-        key, value = parse_override(text)
-        _set_path(raw, key, value)
-    validate(raw, source=str(path), schema=schema)
-    return raw
+    return from_dict(raw or {}, overrides, schema, source=str(path))

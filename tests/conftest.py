@@ -17,3 +17,21 @@ def ray_session():
         ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, runtime_env={"env_vars": {"OMP_NUM_THREADS": "1"}})
     yield ray
     ray.shutdown()
+
+
+@pytest.fixture(scope="session")
+def bandit_egos(ray_session, tmp_path_factory):
+    """Modular egos (lam 0.5, the paper's 10 000 steps) on the bandit with 1 and 2 symmetric contexts.
+
+    Trained once per session through the real Tune pipeline, two trials in parallel;
+    returns {population name: trial result}.
+    """
+    from rllib_conv import config
+    from rllib_conv.pipelines.train import run
+
+    raw = config.load(
+        "tune_configs/bandit_modular.yaml", ["name=egos", "population={grid_search: [bandit-s1-hand, bandit-s2-hand]}"]
+    )
+    results = run(raw, storage=tmp_path_factory.mktemp("egos"))
+    assert not results.errors
+    return {r.config["population"]: r for r in results}

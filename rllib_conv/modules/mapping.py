@@ -28,12 +28,20 @@ class PartnerMapping:
         self.shared_head = shared_head
         self._next = 0
         self._assigned: OrderedDict[str, int] = OrderedDict()
+        self._focus: int | None = None
+
+    def focus(self, partner: str | None) -> None:
+        """Pair every new episode with `partner` only (None: back to round robin). Used by MAML."""
+        self._focus = None if partner is None else self.partners.index(partner)
 
     def partner_for(self, episode_id: str) -> str:
         """Return the partner assigned to `episode_id`, assigning the next one on first sight."""
         if episode_id not in self._assigned:
-            self._assigned[episode_id] = self._next % len(self.partners)
-            self._next += 1
+            if self._focus is not None:
+                self._assigned[episode_id] = self._focus
+            else:
+                self._assigned[episode_id] = self._next % len(self.partners)
+                self._next += 1
             if len(self._assigned) > _CACHE:
                 self._assigned.popitem(last=False)
         return self.partners[self._assigned[episode_id]]

@@ -4,13 +4,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 from ray.rllib.algorithms.ppo import PPOConfig
+from ray.rllib.core import COMPONENT_LEARNER, COMPONENT_RL_MODULE
 from ray.rllib.core.rl_module.multi_rl_module import MultiRLModuleSpec
 from ray.rllib.core.rl_module.rl_module import RLModuleSpec
 
 from rllib_conv import envs, partners
-from rllib_conv.config import ExperimentConfig, PPOSettings, RunSettings
+from rllib_conv.config import SINGLE_HEAD_METHODS, ExperimentConfig, PPOSettings, RunSettings
 from rllib_conv.envs.rllib_adapter import (
     PettingZooMultiAgentEnv,
     RLlibGame,
@@ -45,12 +47,17 @@ class EgoSetup:
     @property
     def head_ids(self) -> list[str]:
         """The ego heads being trained (one per training partner; one for BaselineAgg)."""
-        return [AGG_HEAD_ID] if self.exp.method == "agg" else [ego_id(e.name) for e in self.train]
+        return [AGG_HEAD_ID] if self.exp.method in SINGLE_HEAD_METHODS else [ego_id(e.name) for e in self.train]
 
 
 def resolve(exp: ExperimentConfig) -> EgoSetup:
     """Load the population, check it fits the game, and fill in the game's defaults."""
     pop = partners.get(exp.population)
+    return setup_for(exp, pop, pop.entries("train"))
+
+
+def setup_for(exp: ExperimentConfig, pop: Population, train: list[PartnerEntry]) -> EgoSetup:
+    """The setup training the ego of `exp` against the partners `train` of `pop`."""
     if exp.env is not None and exp.env != pop.env:
         raise ValueError(f"env {exp.env!r} does not match population {pop.name!r}, which is for {pop.env!r}")
     env_config = {**pop.env_config, **exp.env_config}
@@ -60,15 +67,17 @@ def resolve(exp: ExperimentConfig) -> EgoSetup:
             f"population {pop.name!r}: partner_agent {pop.partner_agent!r} must be one of the game's two agents "
             f"{probe.possible_agents}"
         )
-    train = pop.entries("train")
     if not train:
-        raise ValueError(f"population {pop.name!r} has no training partners")
+        raise ValueError(f"population {pop.name!r} has no partners to train with")
     ego_agent = next(a for a in probe.possible_agents if a != pop.partner_agent)
     return EgoSetup(exp.resolve(pop.env), pop, env_config, ego_agent, pop.partner_agent, train)
 
 
-def module_specs(setup: EgoSetup) -> dict[str, RLModuleSpec]:
-    """Return the RLModuleSpecs: the task module, the ego heads and the fixed partners."""
+def module_specs(setup: EgoSetup, load: dict[str, str] | None = None) -> dict[str, RLModuleSpec]:
+    """Return the RLModuleSpecs: the task module, the ego heads and the fixed partners.
+
+    `load` maps module IDs to module checkpoint folders whose weights they start from.
+    """
     exp = setup.exp
     env = PettingZooMultiAgentEnv(envs.make(setup.population.env, **setup.env_config))
     ego_obs, ego_act = env.observation_spaces[setup.ego_agent], env.action_spaces[setup.ego_agent]
@@ -89,6 +98,8 @@ def module_specs(setup: EgoSetup) -> dict[str, RLModuleSpec]:
             action_space=p_act,
             model_config={"partner": spec, "seed": exp.seed * 1000 + i},
         )
+    for mid, path in (load or {}).items():
+        specs[mid].load_state_path = str(path)
     return specs
 
 
@@ -133,11 +144,13 @@ def base_ppo_config(game: str, env_config: dict, ppo: PPOSettings, run: RunSetti
     )
 
 
-def build_ppo_config(setup: EgoSetup) -> PPOConfig:
-    """Return the PPOConfig training the ego against `setup`'s training partners."""
+def build_ppo_config(setup: EgoSetup, load: dict[str, str] | None = None) -> PPOConfig:
+    """Return the PPOConfig training the ego against `setup`'s partners (starting weights from `load`)."""
     exp, ppo = setup.exp, setup.exp.ppo
-    specs = module_specs(setup)
-    mapping = PartnerMapping([e.name for e in setup.train], setup.ego_agent, setup.partner_agent, shared_head=exp.method == "agg")
+    specs = module_specs(setup, load)
+    mapping = PartnerMapping(
+        [e.name for e in setup.train], setup.ego_agent, setup.partner_agent, shared_head=exp.method in SINGLE_HEAD_METHODS
+    )
     return (
         base_ppo_config(setup.population.env, setup.env_config, ppo, exp.run, exp.seed, ppo.rollout_per_partner * len(setup.train))
         .multi_agent(
@@ -151,3 +164,12 @@ def build_ppo_config(setup: EgoSetup) -> PPOConfig:
             learner_config_dict={"lam": exp.lam, "freeze": list(exp.freeze), "adam_eps": ppo.adam_eps},
         )
     )
+
+
+def push_learner_weights(algo: Any) -> None:
+    """Send the learner's module weights to every env runner, local and remote (as PPO does after an update)."""
+    state = algo.learner_group.get_state(components=f"{COMPONENT_LEARNER}/{COMPONENT_RL_MODULE}", inference_only=True)
+    # No weights sequence number: env runners skip states whose number they have seen, and
+    # weights changed outside an update (MAML's outer step, a reset layer) keep the old one.
+    module_state = {COMPONENT_RL_MODULE: state[COMPONENT_LEARNER][COMPONENT_RL_MODULE]}
+    algo.env_runner_group.sync_env_runner_states(config=algo.config, rl_module_state=module_state)

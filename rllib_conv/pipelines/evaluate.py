@@ -88,16 +88,24 @@ def bandit_states(env_config: dict[str, Any]) -> tuple[np.ndarray, np.ndarray]:
 
 
 def marginal_distances(
-    module: ConventionMultiRLModule, env_name: str, env_config: dict[str, Any], obs: np.ndarray, mask: np.ndarray
+    module: ConventionMultiRLModule,
+    env_name: str,
+    env_config: dict[str, Any],
+    obs: np.ndarray,
+    mask: np.ndarray,
+    head_id: str | None = None,
 ) -> dict[str, float]:
     """L1 distance between the task module's distribution and the true marginals on `obs`.
 
-    `paper`: averaged over states with more than one optimal action and at least one
-    non-optimal legal action (the paper's marginals figure); `all`: over every state.
+    With `head_id` the policy of that head is compared instead (single-network methods,
+    whose whole policy is their estimate of the marginals). `paper`: averaged over states
+    with more than one optimal action and at least one non-optimal legal action (the
+    paper's marginals figure); `all`: over every state.
     """
     optimal = oracle_for(env_name, env_config)(obs) * mask
     truth = optimal / optimal.sum(axis=1, keepdims=True)
-    dist = np.abs(task_probs(module, obs, mask) - truth).sum(axis=1)
+    probs = task_probs(module, obs, mask) if head_id is None else head_probs(module, head_id, obs, mask)
+    dist = np.abs(probs - truth).sum(axis=1)
     n_opt = optimal.sum(axis=1)
     ambiguous = (n_opt > 1) & (n_opt < mask.sum(axis=1))
     return {"paper": float(dist[ambiguous].mean()) if ambiguous.any() else float("nan"), "all": float(dist.mean())}

@@ -22,12 +22,14 @@ from ray import tune
 from ray.tune import Callback
 from ray.tune.execution.placement_groups import PlacementGroupFactory
 
-from rllib_conv.config import GRID_KEY, ExperimentConfig, validate
+from rllib_conv.config import GRID_KEY, SINGLE_HEAD_METHODS, ExperimentConfig, validate
 from rllib_conv.envs.oracles import has_oracle
 from rllib_conv.learners.marginal_learner import MARGINAL_REG_KEY
 from rllib_conv.modules.multi import AGG_HEAD_ID, ego_id, partner_id
 from rllib_conv.pipelines.algorithm import EgoSetup, build_ppo_config, resolve
-from rllib_conv.pipelines.evaluate import bandit_states, ego_return, marginal_distances
+from rllib_conv.pipelines.evaluate import ego_return, marginal_distances
+from rllib_conv.pipelines.maml import MetaTrainer
+from rllib_conv.pipelines.marginals import TASK_OUTPUT_METHODS, marginal_states
 
 EVAL_FILE = "eval.json"
 CONFIG_FILE = "config.yaml"
@@ -35,7 +37,7 @@ CONFIG_FILE = "config.yaml"
 
 def head_for(setup: EgoSetup, partner_name: str) -> str:
     """The ego head that plays with `partner_name` (the shared head for BaselineAgg)."""
-    return AGG_HEAD_ID if setup.exp.method == "agg" else ego_id(partner_name)
+    return AGG_HEAD_ID if setup.exp.method in SINGLE_HEAD_METHODS else ego_id(partner_name)
 
 
 def summarize(result: dict[str, Any], setup: EgoSetup) -> dict[str, Any]:
@@ -62,9 +64,10 @@ def evaluate(module: Any, setup: EgoSetup, episodes: int, seed: int = 0) -> dict
         r = ego_return(module, head_for(setup, e.name), game, setup.env_config, e.build(), setup.ego_agent, setup.partner_agent, episodes, seed)
         for key, value in r.items():
             out[f"eval/{key}/{e.name}"] = value
-    if game == "bandit" and has_oracle(game):
-        obs, mask = bandit_states(setup.env_config)
-        for key, value in marginal_distances(module, game, setup.env_config, obs, mask).items():
+    if has_oracle(game) and setup.exp.method in TASK_OUTPUT_METHODS:
+        obs, mask = marginal_states(setup.population, episodes, seed)
+        head = AGG_HEAD_ID if setup.exp.method in SINGLE_HEAD_METHODS else None
+        for key, value in marginal_distances(module, game, setup.env_config, obs, mask, head).items():
             out[f"eval/marginal_distance/{key}"] = value
     return out
 
@@ -78,11 +81,17 @@ class EgoTrainable(tune.Trainable):
         torch.set_num_threads(1)
         self.ego = resolve(ExperimentConfig.model_validate(config))
         self.algo = build_ppo_config(self.ego).build_algo()
+        maml = self.ego.exp.maml
+        self.meta = (
+            MetaTrainer(self.algo, [e.name for e in self.ego.train], maml.inner_iterations, maml.outer_step)
+            if self.ego.exp.method == "maml"
+            else None
+        )
         Path(self.logdir, CONFIG_FILE).write_text(yaml.safe_dump(self.ego.exp.model_dump(), sort_keys=False))
         self._start = time.perf_counter()
 
     def step(self) -> dict[str, Any]:
-        metrics = summarize(self.algo.train(), self.ego)
+        metrics = summarize(self.meta.step() if self.meta else self.algo.train(), self.ego)
         metrics["done"] = metrics["env_steps"] >= self.ego.exp.run.timesteps
         if metrics["done"]:
             final = evaluate(self.algo.env_runner.module, self.ego, self.ego.exp.run.eval_episodes, self.ego.exp.seed)
@@ -109,10 +118,18 @@ class EgoTrainable(tune.Trainable):
 class ProgressLine(Callback):
     """Print one line per trial iteration: steps, returns (mean and worst partner), regulariser, gate."""
 
-    FIELDS = (("return_mean", "return"), ("train_return", "return"), (MARGINAL_REG_KEY, "reg"), ("gate_check", "gate check"), ("gate_score", "gate"))
+    FIELDS = (
+        ("return_mean", "return"),
+        ("train_return", "return"),
+        ("mean_return", "eval"),
+        (MARGINAL_REG_KEY, "reg"),
+        ("gate_check", "gate check"),
+        ("gate_score", "gate"),
+    )
 
     def on_trial_result(self, iteration: int, trials: list, trial: Any, result: dict[str, Any], **info: Any) -> None:
-        parts = [f"[{trial.trial_id}] iter {result.get('training_iteration', 0):4d}", f"steps {result.get('env_steps', 0):8d}"]
+        steps = result.get("env_steps", result.get("steps", 0))
+        parts = [f"[{trial.trial_id}] iter {result.get('training_iteration', 0):4d}", f"steps {steps:8d}"]
         for key, label in self.FIELDS:
             value = result.get(key)
             if isinstance(value, (int, float)) and not math.isnan(value):

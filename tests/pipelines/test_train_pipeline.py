@@ -13,10 +13,9 @@ from rllib_conv.pipelines.train import CONFIG_FILE, EVAL_FILE, run
 PARTNERS = [f"hand-train-{k}" for k in range(4)]
 
 
-def test_modular_ego_learns_conventions_and_marginals_within_paper_budget(ray_session, tmp_path, capfd) -> None:
+def test_modular_ego_learns_conventions_and_marginals_within_paper_budget(bandit_egos) -> None:
     """Bandit, 2 symmetric contexts, 4 hand-designed partners, lam 0.5, the paper's 10 000 steps."""
-    raw = config.load("tune_configs/bandit_modular.yaml", ["run.timesteps=10000", "name=learn"])
-    result = run(raw, storage=tmp_path)[0]
+    result = bandit_egos["bandit-s2-hand"]
     assert result.error is None
     m = result.metrics
     assert m["env_steps"] <= 10_000 + 256  # stops at the first iteration reaching the budget
@@ -30,7 +29,14 @@ def test_modular_ego_learns_conventions_and_marginals_within_paper_budget(ray_se
     progress = pd.read_csv(f"{trial}/progress.csv")
     assert {f"return/{n}" for n in PARTNERS} <= set(progress.columns) and len(progress) >= 30
     assert result.checkpoint is not None
-    assert "iter    1  steps      256" in capfd.readouterr().out  # one progress line per iteration
+
+
+def test_one_progress_line_per_iteration(ray_session, tmp_path, capfd) -> None:
+    raw = config.load("tune_configs/bandit_modular.yaml", ["run.timesteps=512", "name=progress", "model.hidden=8"])
+    run(raw, storage=tmp_path)
+    lines = [ln for ln in capfd.readouterr().out.splitlines() if "] iter" in ln]
+    assert [ln.split("iter")[1].split()[0] for ln in lines] == ["1", "2"]
+    assert "steps      256" in lines[0] and "steps      512" in lines[1] and "reg " in lines[1]
 
 
 def test_grid_over_lam_from_yaml(ray_session, tmp_path) -> None:

@@ -1,0 +1,185 @@
+"""Adapt trained egos to new partners: keep the task module, add a fresh head, train with lam 0.
+
+Every (trained ego, new partner) pair is one Tune trial (`AdaptTrainable`): the ego is
+rebuilt from the run's resolved config with the new partner as its only partner, the
+task module's weights (and, for single-network methods, the head's) load from the run's
+last checkpoint, and the ego is evaluated before every update. All methods go through
+this one pipeline; `scratch` starts from a fresh single network instead.
+
+Output: one tidy CSV, one row per evaluation point: run, method, lam, z_dim, seed,
+partner, steps, mean_return, stderr, exact_return (one-step games only).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+import yaml
+from ray import tune
+from ray.tune.execution.placement_groups import PlacementGroupFactory
+
+from rllib_conv import partners
+from rllib_conv.config import ADAPT_DEFAULTS, SINGLE_HEAD_METHODS, AdaptConfig, ExperimentConfig, validate
+from rllib_conv.modules.multi import AGG_HEAD_ID, TASK_ID
+from rllib_conv.pipelines.algorithm import EgoSetup, build_ppo_config, setup_for
+from rllib_conv.pipelines.evaluate import ego_return
+from rllib_conv.pipelines.selfplay import RL_MODULE_DIR
+from rllib_conv.pipelines.train import CONFIG_FILE, ProgressLine, head_for, init_ray
+
+PAIR_KEY = "adapt_pair"
+STEPS_FILE = "adapt_steps.json"
+CURVE_COLUMNS = ["run", "method", "lam", "z_dim", "seed", "partner", "steps", "mean_return", "stderr", "exact_return"]
+
+
+def trial_folders(path: str | Path) -> list[Path]:
+    """The trained-ego trial folders under `path` (itself, or every trial of an experiment folder)."""
+    path = Path(path)
+    if (path / CONFIG_FILE).is_file():
+        return [path]
+    trials = sorted(p.parent for p in path.glob(f"*/{CONFIG_FILE}"))
+    if not trials:
+        raise ValueError(f"{str(path)!r} is neither a trained-ego trial folder nor an experiment folder holding some ({CONFIG_FILE} missing)")
+    return trials
+
+
+def last_checkpoint(trial: Path) -> Path:
+    """The trial's newest checkpoint folder; ValueError if it has none."""
+    checkpoints = sorted(trial.glob("checkpoint_*"), key=lambda p: int(p.name.rsplit("_", 1)[1]))
+    if not checkpoints or not (checkpoints[-1] / RL_MODULE_DIR / TASK_ID).is_dir():
+        raise ValueError(f"trained ego {str(trial)!r} has no complete checkpoint (checkpoint_*/{RL_MODULE_DIR}/{TASK_ID})")
+    return checkpoints[-1]
+
+
+def adapt_setup(cfg: AdaptConfig) -> tuple[EgoSetup, dict[str, str], ExperimentConfig]:
+    """The ego setup adapting run `cfg.run` to partner `cfg.partner`, the weights to load, the run's config."""
+    trial = Path(cfg.run)
+    trained = ExperimentConfig.model_validate(yaml.safe_load((trial / CONFIG_FILE).read_text()))
+    pop = partners.get(cfg.population or trained.population)
+    entry = next((e for e in pop.partners if e.name == cfg.partner), None)
+    if entry is None:
+        raise ValueError(f"population {pop.name!r} has no partner {cfg.partner!r}; it has {[e.name for e in pop.partners]}")
+    game = trained.env
+    if pop.env != game:
+        raise ValueError(f"population {pop.name!r} is for {pop.env!r}, but the ego in {str(trial)!r} was trained on {game!r}")
+    defaults = ADAPT_DEFAULTS.get(game, {"every": trained.ppo.rollout_per_partner, "steps": 20 * trained.ppo.rollout_per_partner})
+    every = cfg.every or defaults["every"]
+    ppo = trained.ppo.model_dump()
+    ppo.update({"rollout_per_partner": every, **{k: defaults[k] for k in ("minibatch_size", "num_epochs") if k in defaults}, **cfg.ppo})
+    scratch = cfg.method == "scratch"
+    exp = trained.model_copy(
+        update={
+            "lam": 0.0,
+            "method": "agg" if scratch else trained.method,
+            "freeze": [] if cfg.train_task else ["task"],
+            "ppo": type(trained.ppo).model_validate(ppo),
+            "env_config": {**pop.env_config},
+        }
+    )
+    checkpoint = last_checkpoint(trial) / RL_MODULE_DIR
+    load = {} if scratch else {TASK_ID: str(checkpoint / TASK_ID)}
+    if exp.method in SINGLE_HEAD_METHODS and not scratch:
+        load[AGG_HEAD_ID] = str(checkpoint / AGG_HEAD_ID)
+    return setup_for(exp, pop, [entry]), load, trained
+
+
+class AdaptTrainable(tune.Trainable):
+    """One adaptation curve: evaluate, update, evaluate, ... until `steps` env steps."""
+
+    def setup(self, config: dict[str, Any]) -> None:
+        import torch
+
+        torch.set_num_threads(1)
+        self.cfg = AdaptConfig.model_validate({**{k: v for k, v in config.items() if k != PAIR_KEY}, **config.get(PAIR_KEY, {})})
+        self.ego, load, trained = adapt_setup(self.cfg)
+        defaults = ADAPT_DEFAULTS.get(self.ego.population.env, {})
+        self.total = self.cfg.steps or defaults.get("steps", 20 * self.ego.exp.ppo.rollout_per_partner)
+        self.algo = build_ppo_config(self.ego, load).build_algo()
+        self.label = {
+            "run": self.cfg.run,
+            "method": self.cfg.method or trained.method,
+            "lam": trained.lam,
+            "z_dim": trained.model.z_dim or trained.model.hidden,
+            "seed": trained.seed,
+            "partner": self.cfg.partner,
+        }
+        self.steps = 0
+
+    def step(self) -> dict[str, Any]:
+        entry = self.ego.train[0]
+        r = ego_return(
+            self.algo.env_runner.module,
+            head_for(self.ego, entry.name),
+            self.ego.population.env,
+            self.ego.env_config,
+            entry.build(),
+            self.ego.ego_agent,
+            self.ego.partner_agent,
+            self.cfg.episodes,
+            seed=self.cfg.seed + self.iteration,
+        )
+        row = {**self.label, "steps": self.steps, "mean_return": r["mean"], "stderr": r["stderr"], "exact_return": r.get("exact", math.nan)}
+        done = self.steps >= self.total
+        if not done:
+            self.steps = int(self.algo.train()["env_runners"]["num_env_steps_sampled_lifetime"])
+        return {**row, "done": done}
+
+    def save_checkpoint(self, checkpoint_dir: str) -> None:
+        self.algo.save_to_path(checkpoint_dir)
+        Path(checkpoint_dir, STEPS_FILE).write_text(json.dumps({"steps": self.steps}))
+
+    def load_checkpoint(self, checkpoint: str) -> None:
+        self.algo.restore_from_path(checkpoint)
+        self.steps = json.loads(Path(checkpoint, STEPS_FILE).read_text())["steps"]
+
+    def cleanup(self) -> None:
+        self.algo.stop()
+
+    @classmethod
+    def default_resource_request(cls, config: dict[str, Any]) -> PlacementGroupFactory:
+        return PlacementGroupFactory([{"CPU": 1}])
+
+
+def adaptation_trials(cfg: AdaptConfig) -> list[dict[str, str]]:
+    """Every (run, partner) pair to adapt, validated before anything runs."""
+    pairs = []
+    for run in cfg.runs:
+        for trial in trial_folders(run):
+            last_checkpoint(trial)
+            trained = ExperimentConfig.model_validate(yaml.safe_load((trial / CONFIG_FILE).read_text()))
+            pop = partners.get(cfg.population or trained.population)
+            names = cfg.partners or [e.name for e in pop.entries(cfg.split)]
+            unknown = set(names) - {e.name for e in pop.partners}
+            if unknown:
+                raise ValueError(f"population {pop.name!r} has no partner(s) {sorted(unknown)}")
+            pairs += [{"run": str(trial.resolve()), "partner": name} for name in names]
+    if not pairs:
+        raise ValueError(f"no partners to adapt to (split {cfg.split!r} is empty)")
+    return pairs
+
+
+def run_adaptation(raw: dict[str, Any], out: str | Path = "adaptation", storage: str | Path = "runs", address: str | None = None) -> pd.DataFrame:
+    """Adapt every run in `raw` to every chosen partner; write and return the tidy curves CSV."""
+    cfg = validate(raw, schema=AdaptConfig)[0]
+    pairs = adaptation_trials(cfg)
+    for pair in pairs:
+        adapt_setup(AdaptConfig.model_validate({**raw, **pair}))  # wrong game, missing weights: fail early
+    init_ray(address)
+    # One trial per (run, partner) pair; Tune grids cannot zip two axes, so the pair is one value.
+    tuner = tune.Tuner(
+        AdaptTrainable,
+        param_space={**raw, PAIR_KEY: tune.grid_search(pairs)},
+        run_config=tune.RunConfig(name=f"adapt-{cfg.name}", storage_path=str(Path(storage).resolve()), callbacks=[ProgressLine()], verbose=0),
+    )
+    results = tuner.fit()
+    frames = [r.metrics_dataframe[CURVE_COLUMNS] for r in results if r.metrics_dataframe is not None and not r.error]
+    curves = pd.concat(frames, ignore_index=True).sort_values(["run", "partner", "steps"]) if frames else pd.DataFrame(columns=CURVE_COLUMNS)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    curves.to_csv(out / f"{cfg.name}.csv", index=False)
+    if results.errors:
+        raise RuntimeError(f"{len(results.errors)} adaptation trial(s) failed; the others are in {out / (cfg.name + '.csv')}")
+    return curves

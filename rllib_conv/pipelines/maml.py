@@ -1,0 +1,64 @@
+"""First-order MAML across training partners, on the single-network ego (task module + one head).
+
+One outer step: take the next training partner; from the meta-weights theta run
+`inner_iterations` ordinary PPO iterations with that partner only; then move theta by
+`outer_step * (adapted - theta)` (Nichol et al. 2018's first-order update, the form the
+paper cites). The network adapts to a new partner like BaselineAgg: fine-tune everything.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import torch
+
+from rllib_conv.modules.multi import AGG_HEAD_ID, TASK_ID
+from rllib_conv.pipelines.algorithm import push_learner_weights
+
+META_MODULES = (TASK_ID, AGG_HEAD_ID)
+Weights = dict[str, dict[str, torch.Tensor]]
+
+
+def outer_update(theta: Weights, adapted: Weights, step: float) -> Weights:
+    """Return theta + step * (adapted - theta), tensor by tensor."""
+    return {mid: {k: t + step * (adapted[mid][k] - t) for k, t in params.items()} for mid, params in theta.items()}
+
+
+def snapshot(module: Any, module_ids: tuple[str, ...] = META_MODULES) -> Weights:
+    """A detached copy of the weights of `module_ids` in a MultiRLModule."""
+    return {mid: {k: v.detach().clone() for k, v in module[mid].state_dict().items()} for mid in module_ids}
+
+
+def load(module: Any, weights: Weights) -> None:
+    """Write `weights` into the MultiRLModule's sub-modules in place (optimizers keep their tensors)."""
+    with torch.no_grad():
+        for mid, params in weights.items():
+            for k, v in module[mid].state_dict().items():
+                v.copy_(params[k])
+
+
+class MetaTrainer:
+    """Runs MAML outer steps on an RLlib algorithm built for the `maml` method."""
+
+    def __init__(self, algo: Any, partners: list[str], inner_iterations: int, outer_step: float) -> None:
+        self.algo, self.partners = algo, partners
+        self.inner_iterations, self.outer_step = inner_iterations, outer_step
+        self.outer_steps = 0
+
+    def _focus(self, partner: str | None) -> None:
+        self.algo.env_runner_group.foreach_env_runner(lambda runner: runner.config.policy_mapping_fn.focus(partner))
+
+    def step(self) -> dict[str, Any]:
+        """One outer step; returns the last inner iteration's RLlib result."""
+        partner = self.partners[self.outer_steps % len(self.partners)]
+        # One learner (or identical copies): the first result is the meta-weights.
+        theta = next(iter(self.algo.learner_group.foreach_learner(lambda learner: snapshot(learner.module)))).get()
+        self._focus(partner)
+        for _ in range(self.inner_iterations):
+            result = self.algo.train()
+        step = self.outer_step
+        self.algo.learner_group.foreach_learner(lambda learner: load(learner.module, outer_update(theta, snapshot(learner.module), step)))
+        push_learner_weights(self.algo)
+        self._focus(None)
+        self.outer_steps += 1
+        return result

@@ -1,0 +1,132 @@
+"""Adapting to new partners and zero-shot coordination on a new task, through the real pipelines."""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from rllib_conv.config import AdaptConfig, ExperimentConfig
+from rllib_conv.modules import AGG_HEAD_ID, TASK_ID, ego_id
+from rllib_conv.pipelines.adapt import CURVE_COLUMNS, adapt_setup, run_adaptation
+from rllib_conv.pipelines.algorithm import build_ppo_config, resolve
+from rllib_conv.pipelines.maml import META_MODULES, MetaTrainer, outer_update, snapshot
+from rllib_conv.pipelines.zeroshot import run_zeroshot
+
+
+def digest(folder: Path) -> str:
+    h = hashlib.sha256()
+    for f in sorted(folder.rglob("*")):
+        if f.is_file():
+            h.update(f.name.encode() + f.read_bytes())
+    return h.hexdigest()
+
+
+def test_adaptation_adds_a_fresh_head_and_reaches_the_new_partner(bandit_egos, tmp_path) -> None:
+    trial = Path(bandit_egos["bandit-s2-hand"].path)
+    before = digest(trial)
+    setup, load, _ = adapt_setup(AdaptConfig(runs=[str(trial)], run=str(trial), partner="hand-test-1"))
+    assert setup.head_ids == [ego_id("hand-test-1")] and set(load) == {TASK_ID}  # a new head, the task module kept
+    assert setup.exp.lam == 0.0 and setup.exp.ppo.num_epochs == 50 and setup.exp.ppo.rollout_per_partner == 16
+
+    curves = run_adaptation({"name": "a", "runs": [str(trial)], "partners": ["hand-test-1"]}, out=tmp_path, storage=tmp_path / "runs")
+    assert list(curves.columns) == CURVE_COLUMNS
+    assert curves["steps"].tolist() == list(range(0, 241, 16))
+    assert (curves["method"] == "modular").all() and (curves["lam"] == 0.5).all() and (curves["partner"] == "hand-test-1").all()
+    # The task module's marginals already give 3/4 (two rule contexts right, two symmetric at 1/2).
+    assert abs(curves["exact_return"].iloc[0] - 0.75) < 0.05
+    assert curves["exact_return"].max() >= 0.9
+    assert (tmp_path / "a.csv").is_file()
+    assert digest(trial) == before  # the trained ego's files are untouched
+
+
+def test_scratch_starts_from_nothing(bandit_egos, tmp_path) -> None:
+    trial = bandit_egos["bandit-s2-hand"].path
+    setup, load, _ = adapt_setup(AdaptConfig(runs=[trial], run=trial, partner="hand-test-0", method="scratch"))
+    assert load == {} and setup.head_ids == [AGG_HEAD_ID]
+    curves = run_adaptation({"name": "s", "runs": [trial], "partners": ["hand-test-0"], "method": "scratch", "steps": 32}, out=tmp_path, storage=tmp_path / "runs")
+    assert curves["exact_return"].iloc[0] < 0.5  # a fresh network knows neither rules nor conventions
+    assert (curves["method"] == "scratch").all()
+
+
+def test_zero_shot_composes_new_task_module_with_test_partner_heads(bandit_egos, tmp_path) -> None:
+    trial = bandit_egos["bandit-s1-hand"].path
+    table = run_zeroshot({"name": "z", "runs": [trial], "head_steps": 1024, "task_steps": 4096}, out=tmp_path, storage=tmp_path / "runs")
+    assert sorted(table["partner"]) == [f"hand-test-{k}" for k in range(4)]
+    assert (table["exact_return"] >= 0.9).all(), table
+    assert (tmp_path / "z.csv").is_file()
+
+
+def test_zero_shot_refuses_non_modular_runs(tmp_path) -> None:
+    import yaml
+
+    from rllib_conv.config import ZeroShotConfig
+    from rllib_conv.pipelines.zeroshot import zeroshot_plan
+
+    trial = tmp_path / "trial"
+    (trial / "checkpoint_000000").mkdir(parents=True)
+    (trial / "config.yaml").write_text(yaml.safe_dump(ExperimentConfig(population="bandit-s1-hand", method="agg").model_dump()))
+    with pytest.raises(ValueError, match="not modular"):
+        zeroshot_plan(ZeroShotConfig(runs=[str(trial)], run=str(trial)))
+
+
+def test_outer_update_by_hand() -> None:
+    theta = {"task": {"w": torch.tensor([1.0, 2.0])}}
+    adapted = {"task": {"w": torch.tensor([3.0, -2.0])}}
+    assert outer_update(theta, adapted, 0.25)["task"]["w"].tolist() == [1.5, 1.0]
+
+
+def test_one_maml_outer_step_moves_weights_by_outer_step_times_adaptation(ray_session) -> None:
+    exp = ExperimentConfig(population="bandit-s2-hand", method="maml", model={"hidden": 8}, ppo={"rollout_per_partner": 16, "num_epochs": 2})
+    setup = resolve(exp)
+    algo = build_ppo_config(setup).build_algo()
+    try:
+        learner_module = algo.learner_group._learner.module
+        trainer = MetaTrainer(algo, [e.name for e in setup.train], inner_iterations=4, outer_step=0.25)
+        theta = snapshot(learner_module)
+        adapted = {}
+        real_train = algo.train
+
+        def train_and_record():
+            result = real_train()
+            adapted.update(snapshot(learner_module))  # the weights after the latest inner iteration
+            return result
+
+        algo.train = train_and_record
+        result = trainer.step()
+        expected = outer_update(theta, adapted, 0.25)
+        after = snapshot(learner_module)
+        for mid in META_MODULES:
+            for k in theta[mid]:
+                torch.testing.assert_close(after[mid][k], expected[mid][k])
+                assert not torch.equal(after[mid][k], adapted[mid][k]) or torch.equal(theta[mid][k], adapted[mid][k])
+        # The env runners got the meta-weights too.
+        runner = snapshot(algo.env_runner.module)
+        for mid in META_MODULES:
+            for k in theta[mid]:
+                torch.testing.assert_close(runner[mid][k], after[mid][k])
+        # The inner loop played the first partner only.
+        sampled = result["env_runners"]["num_module_steps_sampled_lifetime"]
+        others = [sampled.get(f"partner@{e.name}", 0) for e in setup.train[1:]]
+        assert sampled[f"partner@{setup.train[0].name}"] >= 4 * 16 - 8 and max(others) <= 8
+    finally:
+        algo.stop()
+
+
+def test_maml_trains_through_the_pipeline(ray_session, tmp_path) -> None:
+    from rllib_conv.pipelines.train import run
+
+    raw = {
+        "name": "maml",
+        "population": "bandit-s2-hand",
+        "method": "maml",
+        "model": {"hidden": 8},
+        "ppo": {"rollout_per_partner": 16, "num_epochs": 1},
+        "run": {"timesteps": 256},
+    }
+    result = run(raw, storage=tmp_path)[0]
+    assert result.error is None and result.metrics["env_steps"] >= 256
+    assert np.isfinite(result.metrics["eval/marginal_distance/all"])
