@@ -9,7 +9,7 @@ from rllib_conv.cli import main
 
 def test_envs_and_partners_list(capsys) -> None:
     assert main(["envs"]) == 0
-    assert capsys.readouterr().out.split() == ["bandit", "blocks", "hanabi"]
+    assert {"bandit", "blocks", "hanabi"} <= set(capsys.readouterr().out.split())
     assert main(["partners", "list"]) == 0
     out = capsys.readouterr().out
     assert "bandit-s2-hand" in out and "blocks-perm" in out and "bandit-user-study" in out

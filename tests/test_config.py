@@ -20,7 +20,8 @@ def test_shipped_configs_are_valid() -> None:
     files = sorted(Path("tune_configs").glob("*.yaml"))
     assert files
     for f in files:
-        assert config.validate(config.load(f), str(f))
+        schema = config.SelfPlayConfig if f.name.startswith("selfplay_") else config.ExperimentConfig
+        assert config.validate(config.load(f, schema=schema), str(f), schema=schema)
 
 
 def test_defaults_are_the_papers_per_game() -> None:
@@ -36,7 +37,7 @@ def test_defaults_are_the_papers_per_game() -> None:
         ({"population": "p", "lamda": 0.5}, "lamda: Extra inputs are not permitted"),
         ({"population": "p", "ppo": {"lr": "fast"}}, "ppo.lr: Input should be a valid number"),
         ({"population": "p", "ppo": {"minibatch_size": 0}}, "ppo.minibatch_size: Input should be greater than 0"),
-        ({"population": "p", "method": "maml"}, "method: Input should be 'modular', 'agg', 'no_task_logits' or 'oracle'"),
+        ({"population": "p", "method": "meta"}, "method: Input should be 'modular', 'agg', 'no_task_logits', 'oracle' or 'maml'"),
         ({"population": "p", "method": "no_task_logits", "lam": 0.5}, "lam must be 0 for method 'no_task_logits'"),
         ({"population": "p", "env": "chess"}, "env: Value error, unknown env 'chess'"),
         ({"lam": 0.5}, "population: Field required"),

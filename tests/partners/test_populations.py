@@ -38,7 +38,7 @@ def test_new_task_population_keeps_conventions() -> None:
 
 def test_manifest_round_trip(tmp_path) -> None:
     pop = partners.get("blocks-perm")
-    pop.partners[0].seed, pop.partners[0].score, pop.partners[0].checkpoint = 7, 19.5, "ckpt/p0"
+    pop.partners[0].seed, pop.partners[0].score, pop.partners[0].checkpoint = 7, 19.5, str(tmp_path / "ckpt" / "p0")
     path = pop.save(tmp_path / "pop.json")
     loaded = partners.get(str(path))
     assert loaded == pop
@@ -85,6 +85,14 @@ def test_unknown_population_and_missing_manifest(tmp_path) -> None:
     (tmp_path / "broken.json").write_text("{not json")
     with pytest.raises(ValueError, match="not valid JSON/YAML"):
         partners.get(str(tmp_path / "broken.json"))
+
+
+def test_relative_checkpoints_resolve_against_the_manifest_folder(tmp_path) -> None:
+    pop = partners.get("blocks-perm")
+    pop.partners[0].checkpoint = "partners/p0"
+    pop.save(tmp_path / "pop" / "population.json")
+    loaded = partners.get(str(tmp_path / "pop"))  # a folder works as well as the manifest path
+    assert loaded.partners[0].checkpoint == str((tmp_path / "pop" / "partners" / "p0").resolve())
 
 
 def test_save_is_atomic_and_leaves_no_temp_files(tmp_path) -> None:
