@@ -159,6 +159,13 @@ def _cmd_marginals(args: argparse.Namespace) -> None:
     print(f"wrote {args.out}")
 
 
+def _cmd_reproduce(args: argparse.Namespace) -> None:
+    from rllib_conv.pipelines.reproduce import reproduce, stage_table
+
+    reproduce(args.game, out=args.out, seeds=args.seeds, quick=args.quick, address=args.address)
+    print(stage_table(args.out).to_string(index=False))
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Return the argument parser of every subcommand."""
     parser = argparse.ArgumentParser(prog="rllib-conv", description=__doc__.splitlines()[0])
@@ -214,6 +221,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", default="marginals/marginals.csv")
     p.set_defaults(func=_cmd_marginals)
+
+    p = sub.add_parser("reproduce", help="run every stage of the paper's experiments for a game (resumable)")
+    p.add_argument("game", choices=["bandit", "blocks", "hanabi", "all"])
+    p.add_argument("--seeds", type=int, default=3, help="seeds per method (default 3)")
+    p.add_argument("--quick", action="store_true", help="a small version (1 seed, short runs) for demos and tests")
+    p.add_argument("--out", default="reproduce", help="output folder (default: reproduce)")
+    p.add_argument("--address", default=None, help="Ray cluster address; default: $RAY_ADDRESS or a local Ray")
+    p.set_defaults(func=_cmd_reproduce)
 
     p = sub.add_parser("crossplay", help="pair every member of population A (ego seat) with every member of B")
     p.add_argument("a", help="population name, manifest or folder")

@@ -10,6 +10,11 @@ the true marginal best response is uniform over that set.
   partner's signal for the blue goal, each for 3 of the 9). Moves 2 and 4: put red on
   its target (the red goal; on the new task, a goal-empty cell) unless it is there,
   in which case passing or re-placing it are the (equivalent) optimal moves.
+
+Distributions are compared over distinct moves: `canonical_actions` merges actions that
+have the same effect in a state (for blocks P1: re-placing red where it is, or removing it
+when it is off the grid, is a pass), so a policy is not charged for picking one of two
+identical moves.
 """
 
 from __future__ import annotations
@@ -19,15 +24,25 @@ from typing import Any, Callable
 import numpy as np
 
 from rllib_conv.envs.bandit import CollaborativeBanditEnv
-from rllib_conv.envs.blocks import BLUE, NUM_ACTIONS, NUM_CELLS, PASS, RED
+from rllib_conv.envs.blocks import BLUE, NUM_ACTIONS, NUM_CELLS, PASS, RED, REMOVE
 
 OracleFn = Callable[[np.ndarray], np.ndarray]
 _ORACLES: dict[str, Callable[..., OracleFn]] = {}
+# Per game: obs [B, d] -> [B, A] canonical action of each action (actions with the same effect
+# in that state share one), so distributions are compared over distinct moves.
+_CANONICAL: dict[str, Callable[[np.ndarray], np.ndarray]] = {}
 
 
 def register_oracle(env_name: str, builder: Callable[..., OracleFn]) -> None:
     """Register `builder(**env_config) -> OracleFn` for the game `env_name`."""
     _ORACLES[env_name] = builder
+
+
+def canonical_actions(env_name: str, obs: np.ndarray, num_actions: int) -> np.ndarray:
+    """[B, A] index of the canonical action of each action (identity if the game declares none)."""
+    if env_name in _CANONICAL:
+        return _CANONICAL[env_name](obs)
+    return np.tile(np.arange(num_actions), (len(obs), 1))
 
 
 def has_oracle(env_name: str) -> bool:
@@ -49,14 +64,29 @@ def bandit_oracle(**env_config: Any) -> OracleFn:
     return lambda obs: np.asarray(obs, dtype=np.float32) @ optimal
 
 
+def _blocks_grid(obs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Decode a batch of P1 observations into goal [B, 4], working grid [B, 4] and move [B]."""
+    obs = np.asarray(obs)
+    goal = obs[:, : NUM_CELLS * 4].reshape(-1, NUM_CELLS, 4).argmax(axis=2)
+    grid = obs[:, NUM_CELLS * 4 : NUM_CELLS * 7].reshape(-1, NUM_CELLS, 3).argmax(axis=2)
+    return goal, grid, obs[:, NUM_CELLS * 7 :].argmax(axis=1)
+
+
+def blocks_canonical(obs: np.ndarray) -> np.ndarray:
+    """P1's moves that change nothing are one move: placing red where it is, or removing it when off the grid, is a pass."""
+    _, grid, _ = _blocks_grid(obs)
+    canon = np.tile(np.arange(NUM_ACTIONS), (len(grid), 1))
+    red_on = grid == RED
+    canon[:, :NUM_CELLS][red_on] = PASS
+    canon[~red_on.any(axis=1), REMOVE] = PASS
+    return canon
+
+
 def blocks_oracle(new_task: bool = False, render_mode: str | None = None) -> OracleFn:
     """Hand-rule oracle of blocks for P1 (see the module docstring)."""
 
     def oracle(obs: np.ndarray) -> np.ndarray:
-        obs = np.asarray(obs)
-        goal = obs[:, : NUM_CELLS * 4].reshape(-1, NUM_CELLS, 4).argmax(axis=2)
-        grid = obs[:, NUM_CELLS * 4 : NUM_CELLS * 7].reshape(-1, NUM_CELLS, 3).argmax(axis=2)
-        move = obs[:, NUM_CELLS * 7 :].argmax(axis=1)
+        goal, grid, move = _blocks_grid(obs)
         target = (goal == 0) if new_task else (goal == RED)  # [B, cells]
         red_on = grid == RED
         out = np.zeros((len(obs), NUM_ACTIONS), dtype=np.float32)
@@ -75,3 +105,4 @@ def blocks_oracle(new_task: bool = False, render_mode: str | None = None) -> Ora
 
 register_oracle("bandit", bandit_oracle)
 register_oracle("blocks", blocks_oracle)
+_CANONICAL["blocks"] = blocks_canonical

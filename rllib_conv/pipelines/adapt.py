@@ -28,7 +28,8 @@ from rllib_conv.modules.multi import AGG_HEAD_ID, TASK_ID
 from rllib_conv.pipelines.algorithm import EgoSetup, build_ppo_config, setup_for
 from rllib_conv.pipelines.evaluate import ego_return
 from rllib_conv.pipelines.selfplay import RL_MODULE_DIR
-from rllib_conv.pipelines.train import CONFIG_FILE, ProgressLine, head_for, init_ray
+from rllib_conv.pipelines.train import CONFIG_FILE, head_for
+from rllib_conv.pipelines.tuning import fit
 
 PAIR_KEY = "adapt_pair"
 STEPS_FILE = "adapt_steps.json"
@@ -167,14 +168,8 @@ def run_adaptation(raw: dict[str, Any], out: str | Path = "adaptation", storage:
     pairs = adaptation_trials(cfg)
     for pair in pairs:
         adapt_setup(AdaptConfig.model_validate({**raw, **pair}))  # wrong game, missing weights: fail early
-    init_ray(address)
     # One trial per (run, partner) pair; Tune grids cannot zip two axes, so the pair is one value.
-    tuner = tune.Tuner(
-        AdaptTrainable,
-        param_space={**raw, PAIR_KEY: tune.grid_search(pairs)},
-        run_config=tune.RunConfig(name=f"adapt-{cfg.name}", storage_path=str(Path(storage).resolve()), callbacks=[ProgressLine()], verbose=0),
-    )
-    results = tuner.fit()
+    results = fit(AdaptTrainable, raw, {**raw, PAIR_KEY: tune.grid_search(pairs)}, f"adapt-{cfg.name}", storage, address)
     frames = [r.metrics_dataframe[CURVE_COLUMNS] for r in results if r.metrics_dataframe is not None and not r.error]
     curves = pd.concat(frames, ignore_index=True).sort_values(["run", "partner", "steps"]) if frames else pd.DataFrame(columns=CURVE_COLUMNS)
     out = Path(out)

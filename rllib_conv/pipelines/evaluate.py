@@ -11,7 +11,7 @@ from ray.rllib.core.rl_module.multi_rl_module import MultiRLModule
 
 from rllib_conv import envs
 from rllib_conv.envs.bandit import CollaborativeBanditEnv
-from rllib_conv.envs.oracles import oracle_for
+from rllib_conv.envs.oracles import canonical_actions, oracle_for
 from rllib_conv.modules.multi import ConventionMultiRLModule
 from rllib_conv.partners.base import Partner
 from rllib_conv.partners.play import play_episodes
@@ -87,6 +87,14 @@ def bandit_states(env_config: dict[str, Any]) -> tuple[np.ndarray, np.ndarray]:
     return np.eye(env.num_contexts, dtype=np.float32), np.ones((env.num_contexts, env.num_arms), dtype=np.int8)
 
 
+def merge_actions(values: np.ndarray, canon: np.ndarray) -> np.ndarray:
+    """Sum `values` [B, A] onto each row's canonical actions (`canon` [B, A] of action indices)."""
+    out = np.zeros_like(values, dtype=np.float64)
+    rows = np.repeat(np.arange(len(values)), values.shape[1])
+    np.add.at(out, (rows, canon.ravel()), values.ravel())
+    return out
+
+
 def marginal_distances(
     module: ConventionMultiRLModule,
     env_name: str,
@@ -102,12 +110,14 @@ def marginal_distances(
     with more than one optimal action and at least one non-optimal legal action (the
     paper's marginals figure); `all`: over every state.
     """
-    optimal = oracle_for(env_name, env_config)(obs) * mask
+    canon = canonical_actions(env_name, obs, mask.shape[1])
+    optimal = merge_actions(oracle_for(env_name, env_config)(obs) * mask, canon) > 0
     truth = optimal / optimal.sum(axis=1, keepdims=True)
     probs = task_probs(module, obs, mask) if head_id is None else head_probs(module, head_id, obs, mask)
-    dist = np.abs(probs - truth).sum(axis=1)
+    dist = np.abs(merge_actions(probs, canon) - truth).sum(axis=1)
     n_opt = optimal.sum(axis=1)
-    ambiguous = (n_opt > 1) & (n_opt < mask.sum(axis=1))
+    distinct = (merge_actions(mask.astype(float), canon) > 0).sum(axis=1)
+    ambiguous = (n_opt > 1) & (n_opt < distinct)
     return {"paper": float(dist[ambiguous].mean()) if ambiguous.any() else float("nan"), "all": float(dist.mean())}
 
 

@@ -39,7 +39,7 @@ from rllib_conv.partners.play import play_episodes
 from rllib_conv.partners.population import PartnerEntry, Population
 from rllib_conv.partners.trained import PolicyPartner
 from rllib_conv.pipelines.algorithm import base_ppo_config
-from rllib_conv.pipelines.train import ProgressLine, init_ray
+from rllib_conv.pipelines.tuning import fit
 
 SEAT_PREFIX = "seat@"
 SHARED_SEAT = "seat@all"
@@ -217,21 +217,9 @@ def train_population(
     target = Path(out).resolve() / cfg.name
     if target.exists() and not overwrite:
         raise ValueError(f"population folder {str(target)!r} already exists; choose another name or pass --overwrite")
-    init_ray(address)
     pairs = cfg.train_pairs + cfg.test_pairs
-    tuner = tune.Tuner(
-        SelfPlayTrainable,
-        param_space={**raw, "pair": tune.grid_search(list(range(pairs)))},
-        run_config=tune.RunConfig(
-            name=f"selfplay-{cfg.name}",
-            storage_path=str(Path(storage).resolve()),
-            callbacks=[ProgressLine()],
-            verbose=0,
-            sync_config=tune.SyncConfig(sync_artifacts=True),
-            checkpoint_config=tune.CheckpointConfig(num_to_keep=1, checkpoint_frequency=cfg.run.checkpoint_every, checkpoint_at_end=True),
-        ),
-    )
-    results = tuner.fit()
+    checkpoint = tune.CheckpointConfig(num_to_keep=1, checkpoint_frequency=cfg.run.checkpoint_every, checkpoint_at_end=True)
+    results = fit(SelfPlayTrainable, raw, {**raw, "pair": tune.grid_search(list(range(pairs)))}, f"selfplay-{cfg.name}", storage, address, checkpoint)
     target.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f".{cfg.name}.", dir=target.parent))
     try:

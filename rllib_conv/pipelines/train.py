@@ -10,16 +10,13 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import ray
 import yaml
 from ray import tune
-from ray.tune import Callback
 from ray.tune.execution.placement_groups import PlacementGroupFactory
 
 from rllib_conv.config import GRID_KEY, SINGLE_HEAD_METHODS, ExperimentConfig, validate
@@ -30,6 +27,7 @@ from rllib_conv.pipelines.algorithm import EgoSetup, build_ppo_config, resolve
 from rllib_conv.pipelines.evaluate import ego_return, marginal_distances
 from rllib_conv.pipelines.maml import MetaTrainer
 from rllib_conv.pipelines.marginals import TASK_OUTPUT_METHODS, marginal_states
+from rllib_conv.pipelines.tuning import fit
 
 EVAL_FILE = "eval.json"
 CONFIG_FILE = "config.yaml"
@@ -115,33 +113,6 @@ class EgoTrainable(tune.Trainable):
         return PlacementGroupFactory([{"CPU": 1}] + [{"CPU": 1}] * runners)
 
 
-class ProgressLine(Callback):
-    """Print one line per trial iteration: steps, returns (mean and worst partner), regulariser, gate."""
-
-    FIELDS = (
-        ("return_mean", "return"),
-        ("train_return", "return"),
-        ("mean_return", "eval"),
-        (MARGINAL_REG_KEY, "reg"),
-        ("gate_check", "gate check"),
-        ("gate_score", "gate"),
-    )
-
-    def on_trial_result(self, iteration: int, trials: list, trial: Any, result: dict[str, Any], **info: Any) -> None:
-        steps = result.get("env_steps", result.get("steps", 0))
-        parts = [f"[{trial.trial_id}] iter {result.get('training_iteration', 0):4d}", f"steps {steps:8d}"]
-        for key, label in self.FIELDS:
-            value = result.get(key)
-            if isinstance(value, (int, float)) and not math.isnan(value):
-                parts.append(f"{label} {value:.3f}")
-            if key == "return_mean":
-                returns = [v for k, v in result.items() if k.startswith("return/")]
-                if returns:
-                    parts.append(f"min {min(returns):.3f}")
-        parts.append(f"{result.get('time_total_s', 0.0):7.1f}s")
-        print("  ".join(parts), flush=True)
-
-
 def to_param_space(raw: Any) -> Any:
     """Replace `{grid_search: [...]}` nodes of a raw config by `tune.grid_search`."""
     if isinstance(raw, dict):
@@ -151,46 +122,15 @@ def to_param_space(raw: Any) -> Any:
     return raw
 
 
-def init_ray(address: str | None) -> None:
-    """Connect to `address` (or $RAY_ADDRESS); without one start a local embedded Ray."""
-    if ray.is_initialized():
-        return
-    address = address or os.environ.get("RAY_ADDRESS")
-    env = {"env_vars": {"OMP_NUM_THREADS": "1"}}
-    if address:
-        ray.init(address=address, runtime_env=env, log_to_driver=False)
-    else:
-        ray.init(include_dashboard=False, runtime_env=env, log_to_driver=False)
-
-
 def run(raw: dict[str, Any], storage: str | Path = "runs", address: str | None = None) -> tune.ResultGrid:
     """Run the experiment `raw` (already validated by `config.load`) through Tune; return its results.
 
-    Results go to `storage/<name>/`, with the experiment's config in `experiment.yaml`.
+    Results go to `storage/<name>/`, with the experiment's config in `experiment.yaml`;
+    running the same experiment again continues it (see `tuning.fit`).
     """
     variants = validate(raw)
     for exp in variants:
         resolve(exp)  # unknown population, wrong seat, bad env config: fail before anything is written
     first = variants[0]
-    storage = Path(storage).resolve()
-    (storage / first.name).mkdir(parents=True, exist_ok=True)
-    (storage / first.name / "experiment.yaml").write_text(yaml.safe_dump(raw, sort_keys=False))
-    init_ray(address)
-    tuner = tune.Tuner(
-        EgoTrainable,
-        param_space=to_param_space(raw),
-        run_config=tune.RunConfig(
-            name=first.name,
-            storage_path=str(storage),
-            callbacks=[ProgressLine()],
-            verbose=0,
-            # Our config.yaml and eval.json are trial artifacts: persist them with the checkpoints.
-            sync_config=tune.SyncConfig(sync_artifacts=True),
-            checkpoint_config=tune.CheckpointConfig(
-                num_to_keep=first.run.keep_checkpoints,
-                checkpoint_frequency=first.run.checkpoint_every,
-                checkpoint_at_end=True,
-            ),
-        ),
-    )
-    return tuner.fit()
+    checkpoint = tune.CheckpointConfig(num_to_keep=first.run.keep_checkpoints, checkpoint_frequency=first.run.checkpoint_every, checkpoint_at_end=True)
+    return fit(EgoTrainable, raw, to_param_space(raw), first.name, storage, address, checkpoint)

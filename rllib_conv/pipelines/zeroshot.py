@@ -30,7 +30,8 @@ from rllib_conv.pipelines.adapt import last_checkpoint, trial_folders
 from rllib_conv.pipelines.algorithm import build_ppo_config, push_learner_weights, setup_for
 from rllib_conv.pipelines.evaluate import ego_return
 from rllib_conv.pipelines.selfplay import RL_MODULE_DIR
-from rllib_conv.pipelines.train import CONFIG_FILE, ProgressLine, init_ray
+from rllib_conv.pipelines.train import CONFIG_FILE
+from rllib_conv.pipelines.tuning import fit
 
 COMPOSABLE_METHODS = ("modular", "no_task_logits", "oracle")
 RESULT_COLUMNS = ["run", "method", "lam", "seed", "partner", "mean_return", "stderr", "exact_return"]
@@ -132,18 +133,15 @@ def run_zeroshot(raw: dict[str, Any], out: str | Path = "zeroshot", storage: str
     trials = [str(t.resolve()) for run in cfg.runs for t in trial_folders(run)]
     for trial in trials:
         zeroshot_plan(cfg.model_copy(update={"run": trial}))  # not modular, no new-task partners: fail early
-    init_ray(address)
-    results = tune.Tuner(
+    results = fit(
         ZeroShotTrainable,
-        param_space={**raw, "run": tune.grid_search(trials)},
-        run_config=tune.RunConfig(
-            name=f"zeroshot-{cfg.name}",
-            storage_path=str(Path(storage).resolve()),
-            callbacks=[ProgressLine()],
-            verbose=0,
-            checkpoint_config=tune.CheckpointConfig(checkpoint_at_end=False),
-        ),
-    ).fit()
+        raw,
+        {**raw, "run": tune.grid_search(trials)},
+        f"zeroshot-{cfg.name}",
+        storage,
+        address,
+        tune.CheckpointConfig(checkpoint_at_end=False),
+    )
     rows = []
     for r in results:
         if r.error or not r.metrics:

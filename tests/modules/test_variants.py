@@ -124,3 +124,18 @@ def test_hanabi_ego_only_ever_plays_legal_moves(ray_session) -> None:
     finally:
         algo.stop()
     assert result["env_runners"]["num_env_steps_sampled_lifetime"] >= 200
+
+
+def test_identical_moves_are_merged_before_comparing_marginals() -> None:
+    from rllib_conv.envs.oracles import canonical_actions
+    from rllib_conv.pipelines.evaluate import merge_actions
+
+    # Red already on its goal (cell 0): placing it on 0 again is the same move as passing.
+    obs = _p1_obs(0, 3, 0, 2)[None]
+    canon = canonical_actions("blocks", obs, 6)
+    assert canon[0].tolist() == [PASS, 1, 2, 3, 4, PASS]
+    merged = merge_actions(np.array([[0.3, 0.1, 0.0, 0.0, 0.0, 0.6]]), canon)
+    assert merged[0].tolist() == pytest.approx([0.0, 0.1, 0.0, 0.0, 0.0, 0.9])
+    # Red off the grid: removing it is a pass too.
+    assert canonical_actions("blocks", _p1_obs(0, 3, None, 2)[None], 6)[0].tolist() == [0, 1, 2, 3, PASS, PASS]
+    assert canonical_actions("bandit", np.eye(4)[:1], 8)[0].tolist() == list(range(8))

@@ -1,0 +1,257 @@
+"""`rllib-conv reproduce GAME`: every stage the paper's results for a game need, resumable.
+
+Stages run in order, each through the ordinary pipelines (and so through Tune); everything
+lands under `<out>/<game>/`:
+
+| stage | what | output |
+|---|---|---|
+| `selfplay` | self-play partner populations | `populations/<name>/` |
+| `train` | egos: every method x lam x population x seed | `runs/<experiment>/` |
+| `adapt` | adaptation curves to test partners, `scratch` included | `adaptation/<experiment>.csv` |
+| `zeroshot` | the three zero-shot steps (bandit, blocks) | `zeroshot/<experiment>.csv` |
+| `marginals` | task-module distance to the true marginals | `marginals.csv` |
+
+A finished stage leaves `<stage>.done`; running the command again skips it, and an
+interrupted stage continues where it stopped (every Tune experiment resumes). `quick`
+shrinks everything (1 seed, few partners, short runs) for the demo and the tests.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+import pandas as pd
+
+from rllib_conv import config, partners
+from rllib_conv.config import SelfPlayConfig
+from rllib_conv.pipelines.adapt import run_adaptation
+from rllib_conv.pipelines.marginals import marginal_report
+from rllib_conv.pipelines.selfplay import train_population
+from rllib_conv.pipelines.train import run
+from rllib_conv.pipelines.zeroshot import run_zeroshot
+
+GAMES = ("bandit", "blocks", "hanabi")
+CONFIGS = Path(__file__).resolve().parents[2] / "tune_configs"
+
+
+@dataclass
+class Method:
+    """One trained-ego variant: a label for tables and the config keys it sets."""
+
+    label: str
+    settings: dict[str, Any]
+
+
+MODULAR_05 = Method("modular-lam0.5", {"method": "modular", "lam": 0.5})
+BANDIT_METHODS = [
+    Method("modular-lam0", {"method": "modular", "lam": 0.0}),
+    Method("modular-lam0.3", {"method": "modular", "lam": 0.3}),
+    MODULAR_05,
+    Method("lowz-lam0.5", {"method": "modular", "lam": 0.5, "model": {"z_dim": 5}}),
+    Method("agg", {"method": "agg"}),
+    Method("no_task_logits", {"method": "no_task_logits"}),
+    Method("maml", {"method": "maml"}),
+    Method("oracle", {"method": "oracle"}),
+]
+BLOCKS_METHODS = [
+    Method("modular-lam0", {"method": "modular", "lam": 0.0}),
+    MODULAR_05,
+    Method("lowz-lam0.5", {"method": "modular", "lam": 0.5, "model": {"z_dim": 20}}),
+    Method("agg", {"method": "agg"}),
+    Method("no_task_logits", {"method": "no_task_logits"}),
+    Method("maml", {"method": "maml"}),
+    Method("oracle", {"method": "oracle"}),
+]
+# Partners other than hand-designed ones: the comparison the paper draws (ours vs baselines).
+CORE_METHODS = [MODULAR_05, Method("agg", {"method": "agg"}), Method("no_task_logits", {"method": "no_task_logits"}), Method("maml", {"method": "maml"})]
+HANABI_METHODS = [MODULAR_05, Method("agg", {"method": "agg"})]
+ZEROSHOT_METHODS = [MODULAR_05, Method("no_task_logits", {"method": "no_task_logits"})]
+
+
+@dataclass
+class Plan:
+    """What to run for one game at one scale."""
+
+    game: str
+    seeds: list[int]
+    populations: dict[str, list[Method]]  # built-in population -> methods trained and adapted on it
+    selfplay: list[dict[str, Any]]  # self-play configs (overrides of tune_configs/selfplay_<game>.yaml)
+    selfplay_methods: list[Method] = field(default_factory=lambda: list(CORE_METHODS))
+    population_overrides: dict[str, dict[str, Any]] = field(default_factory=dict)  # training settings per population
+    zeroshot_populations: list[str] = field(default_factory=list)
+    adapt_partners: int | None = None  # test partners per population (None: all)
+    train_overrides: dict[str, Any] = field(default_factory=dict)
+    adapt_overrides: dict[str, Any] = field(default_factory=dict)
+    zeroshot_overrides: dict[str, Any] = field(default_factory=dict)
+
+
+def plan_for(game: str, seeds: int = 3, quick: bool = False) -> Plan:
+    """The paper's experiments for `game` (or a small version with `quick`)."""
+    if game not in GAMES:
+        raise ValueError(f"game must be one of {', '.join(GAMES)} (or all), got {game!r}")
+    if quick:
+        quick_train = {"run": {"timesteps": 2048}} if game == "bandit" else {"run": {"timesteps": 4000}, "ppo": {"rollout_per_partner": 400, "minibatch_size": 100}}
+        quick_methods = [MODULAR_05, Method("agg", {"method": "agg"})]
+        return Plan(
+            game=game,
+            seeds=[0],
+            populations={"bandit": {"bandit-s2-hand": quick_methods}, "blocks": {"blocks-perm": quick_methods}, "hanabi": {}}[game],
+            selfplay_methods=quick_methods,
+            selfplay=[{"name": f"{game}-quick-selfplay", "train_pairs": 1, "test_pairs": 1, "run": {"timesteps": 2000 if game == "bandit" else 4000}, "gate": {"score": 0.0, "episodes": 50, "check_every": 1, "check_episodes": 20}}]
+            if game == "hanabi"
+            else [],
+            zeroshot_populations=["bandit-s1-hand"] if game == "bandit" else [],
+            adapt_partners=1,
+            train_overrides=quick_train,
+            adapt_overrides={"steps": 64} if game == "bandit" else {"steps": 1280, "episodes": 50},
+            zeroshot_overrides={"head_steps": 512, "task_steps": 1024},
+        )
+    seed_list = list(range(seeds))
+    if game == "bandit":
+        return Plan(
+            game=game,
+            seeds=seed_list,
+            populations={**{f"bandit-s{m}-hand": BANDIT_METHODS for m in (2, 3, 4)}, "bandit-user-study": CORE_METHODS},
+            selfplay=[{"name": f"bandit-s{m}-selfplay", "env_config": {"symmetric": m}} for m in (2, 3, 4)],
+            zeroshot_populations=[f"bandit-s{m}-hand" for m in (1, 2, 3)],
+            adapt_partners=4,
+            # 24 training partners: the paper's 64 steps per partner would leave 7 updates in 10 000 steps.
+            population_overrides={"bandit-user-study": {"ppo": {"rollout_per_partner": 16}, "run": {"timesteps": 40_000}}},
+        )
+    if game == "blocks":
+        return Plan(
+            game=game,
+            seeds=seed_list,
+            populations={"blocks-perm": BLOCKS_METHODS},
+            selfplay=[{"name": "blocks-selfplay"}],
+            zeroshot_populations=["blocks-perm"],
+            adapt_partners=6,
+            train_overrides={"run": {"timesteps": 300_000}},
+        )
+    return Plan(game=game, seeds=seed_list, populations={}, selfplay=[{"name": "hanabi-selfplay"}], selfplay_methods=HANABI_METHODS, adapt_partners=4)
+
+
+def _merge(base: dict[str, Any], extra: dict[str, Any]) -> dict[str, Any]:
+    out = dict(base)
+    for k, v in extra.items():
+        out[k] = _merge(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else v
+    return out
+
+
+class Reproduction:
+    """Runs a `Plan`'s stages under `root`, skipping finished ones."""
+
+    def __init__(self, plan: Plan, root: Path, address: str | None = None, log: Callable[[str], None] = print) -> None:
+        self.plan, self.root, self.address, self.log = plan, root, address, log
+        self.runs = root / "runs"
+
+    def populations(self) -> dict[str, list[Method]]:
+        """Built-in populations plus this plan's self-play ones, each with its methods."""
+        selfplay = {str(self.root / "populations" / sp["name"]): self.plan.selfplay_methods for sp in self.plan.selfplay}
+        return {**self.plan.populations, **selfplay}
+
+    def experiment(self, population: str, method: Method) -> dict[str, Any]:
+        """The training experiment of one population and method, over the plan's seeds."""
+        short = Path(population).name
+        raw = {
+            "name": f"{short}__{method.label}",
+            "population": population,
+            "seed": {"grid_search": self.plan.seeds},
+            **method.settings,
+        }
+        return _merge(_merge(raw, self.plan.train_overrides), self.plan.population_overrides.get(population, {}))
+
+    def stage_selfplay(self) -> None:
+        for overrides in self.plan.selfplay:
+            target = self.root / "populations" / overrides["name"]
+            if (target / "population.json").is_file():
+                continue
+            raw = config.from_dict(_merge(config.load(CONFIGS / f"selfplay_{self.plan.game}.yaml", schema=SelfPlayConfig), overrides), schema=SelfPlayConfig)
+            _, report = train_population(raw, out=self.root / "populations", storage=self.runs, address=self.address)
+            self.log(f"self-play {overrides['name']}: {int(report['passed'].sum())}/{len(report)} pairs passed the gate")
+
+    def stage_train(self) -> None:
+        for population, methods in self.populations().items():
+            for method in methods:
+                results = run(config.from_dict(self.experiment(population, method)), storage=self.runs, address=self.address)
+                if results.errors:
+                    raise RuntimeError(f"training {Path(population).name} / {method.label}: {len(results.errors)} trial(s) failed")
+
+    def stage_adapt(self) -> None:
+        for population, methods in self.populations().items():
+            pop = partners.get(population)
+            names = [e.name for e in pop.entries("test")][: self.plan.adapt_partners]
+            modular = self.runs / self.experiment(population, MODULAR_05)["name"]
+            jobs = [(self.experiment(population, m)["name"], {}) for m in methods]
+            jobs.append((f"{Path(population).name}__scratch", {"method": "scratch", "runs": [str(modular)]}))
+            for name, extra in jobs:
+                if (self.root / "adaptation" / f"{name}.csv").is_file():
+                    continue
+                raw = _merge({"name": name, "runs": [str(self.runs / name)], "population": population, "partners": names}, {**self.plan.adapt_overrides, **extra})
+                run_adaptation(config.from_dict(raw, schema=config.AdaptConfig), out=self.root / "adaptation", storage=self.runs, address=self.address)
+
+    def stage_zeroshot(self) -> None:
+        for population in self.plan.zeroshot_populations:
+            for method in ZEROSHOT_METHODS:
+                exp = self.experiment(population, method)
+                name = exp["name"]
+                if (self.root / "zeroshot" / f"{name}.csv").is_file():
+                    continue
+                run(config.from_dict(exp), storage=self.runs, address=self.address)  # continues or skips if trained
+                raw = _merge({"name": name, "runs": [str(self.runs / name)]}, self.plan.zeroshot_overrides)
+                run_zeroshot(config.from_dict(raw, schema=config.ZeroShotConfig), out=self.root / "zeroshot", storage=self.runs, address=self.address)
+
+    def stage_marginals(self) -> None:
+        from rllib_conv.pipelines.adapt import trial_folders
+        from rllib_conv.pipelines.train import CONFIG_FILE
+
+        trials = [t for exp in sorted(self.runs.glob("*__*")) if any(exp.glob(f"*/{CONFIG_FILE}")) for t in trial_folders(exp)]
+        table = marginal_report(trials)
+        table["experiment"] = [Path(r).parent.name for r in table["run"]]
+        table.to_csv(self.root / "marginals.csv", index=False)
+
+    def stages(self) -> list[tuple[str, Callable[[], None]]]:
+        """The plan's stages, in order."""
+        stages = [("selfplay", self.stage_selfplay), ("train", self.stage_train), ("adapt", self.stage_adapt)]
+        if self.plan.zeroshot_populations:
+            stages.append(("zeroshot", self.stage_zeroshot))
+        if self.plan.game in ("bandit", "blocks"):
+            stages.append(("marginals", self.stage_marginals))
+        return stages
+
+    def run(self) -> dict[str, float]:
+        """Run every unfinished stage; return the wall time of each stage run now."""
+        self.root.mkdir(parents=True, exist_ok=True)
+        (self.root / "plan.json").write_text(json.dumps({"game": self.plan.game, "seeds": self.plan.seeds, "quick": self.plan.adapt_partners == 1}, indent=2))
+        times = {}
+        for name, stage in self.stages():
+            marker = self.root / f"{name}.done"
+            if marker.is_file():
+                self.log(f"[{self.plan.game}] {name}: done before, skipped")
+                continue
+            self.log(f"[{self.plan.game}] {name}: running")
+            start = time.perf_counter()
+            stage()
+            times[name] = time.perf_counter() - start
+            marker.write_text(f"{times[name]:.1f} s\n")
+            self.log(f"[{self.plan.game}] {name}: finished in {times[name]:.0f} s")
+        return times
+
+
+def reproduce(game: str, out: str | Path = "reproduce", seeds: int = 3, quick: bool = False, address: str | None = None) -> dict[str, dict[str, float]]:
+    """Run `game` (or `all`) and return the stage wall times per game."""
+    games = GAMES if game == "all" else (game,)
+    plans = [plan_for(g, seeds, quick) for g in games]  # validate every game before running any
+    return {p.game: Reproduction(p, Path(out) / p.game, address).run() for p in plans}
+
+
+def stage_table(root: str | Path) -> pd.DataFrame:
+    """Which stages of the games under `root` are finished, and how long they took."""
+    rows = []
+    for marker in sorted(Path(root).glob("*/*.done")):
+        rows.append({"game": marker.parent.name, "stage": marker.stem, "wall": marker.read_text().strip()})
+    return pd.DataFrame(rows)
