@@ -56,7 +56,8 @@ def _cmd_train(args: argparse.Namespace) -> None:
     from rllib_conv.pipelines.train import run
 
     raw = config.load(args.config, args.set)
-    results = run(raw, storage=args.storage, address=args.address)
+    sweep = args.command == "sweep"
+    results = run(raw, storage=args.storage, address=args.address, progress="table" if sweep else "lines", resume=sweep and args.resume)
     rows = []
     for r in results:
         m = r.metrics or {}
@@ -159,11 +160,23 @@ def _cmd_marginals(args: argparse.Namespace) -> None:
     print(f"wrote {args.out}")
 
 
+def _cmd_play(args: argparse.Namespace) -> None:
+    from rllib_conv.play.command import run
+
+    run(args)
+
+
 def _cmd_reproduce(args: argparse.Namespace) -> None:
     from rllib_conv.pipelines.reproduce import reproduce, stage_table
 
     reproduce(args.game, out=args.out, seeds=args.seeds, quick=args.quick, address=args.address)
     print(stage_table(args.out).to_string(index=False))
+
+
+def _cmd_report(args: argparse.Namespace) -> None:
+    from analysis.report import build_report
+
+    print(build_report(args.root, args.out, args.user_study))
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -177,6 +190,20 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("train", help="train the ego from an experiment YAML through Ray Tune")
     p.add_argument("config", help="experiment YAML (see tune_configs/)")
+    _add_run_args(p)
+    p.set_defaults(func=_cmd_train)
+
+    p = sub.add_parser(
+        "sweep",
+        help="run a Tune grid (lam x method x population x seed) with a live table of trials; resumes when rerun",
+        description="Run the grid of an experiment YAML (any key may be {grid_search: [...]}). Checkpoints every "
+        "run.checkpoint_every iterations, keeping run.keep_checkpoints. Results: STORAGE/NAME/<trial>/ "
+        "(progress.csv, config.yaml, eval.json), read by `analysis.loaders.load_sweep`. Running the same command again, "
+        "or with --resume, continues an interrupted sweep: finished trials are kept, the others continue from "
+        "their last checkpoint.",
+    )
+    p.add_argument("config", help="experiment YAML with grid_search values (see tune_configs/)")
+    p.add_argument("--resume", action="store_true", help="continue the sweep in STORAGE/NAME (an error if there is none)")
     _add_run_args(p)
     p.set_defaults(func=_cmd_train)
 
@@ -229,6 +256,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="reproduce", help="output folder (default: reproduce)")
     p.add_argument("--address", default=None, help="Ray cluster address; default: $RAY_ADDRESS or a local Ray")
     p.set_defaults(func=_cmd_reproduce)
+
+    from rllib_conv.play import command as play_command  # stdlib-only: the server loads when `play` runs
+
+    p = sub.add_parser("play", help="web page: people play the bandit study or blocks with the trained ego or each other", description=play_command.DESCRIPTION)
+    play_command.add_arguments(p)
+    p.set_defaults(func=_cmd_play)
+
+    p = sub.add_parser("report", help="build report.md (the paper's numbers beside ours, figures) from a reproduce folder")
+    p.add_argument("root", help="a `reproduce --out` folder (one sub-folder per game) or one game folder")
+    p.add_argument("--out", default=None, help="folder for report.md and figures/ (default: ROOT/report)")
+    p.add_argument("--user-study", nargs="*", default=None, metavar="PATH", help="recorded session CSVs or folders (default: ROOT/user_study)")
+    p.set_defaults(func=_cmd_report)
 
     p = sub.add_parser("crossplay", help="pair every member of population A (ego seat) with every member of B")
     p.add_argument("a", help="population name, manifest or folder")

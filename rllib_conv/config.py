@@ -99,11 +99,21 @@ class PPOSettings(_Strict):
 
 
 class RunSettings(_Strict):
-    """How long and on what: env steps, env runners, vectorised sub-envs, checkpoints."""
+    """How long and on what: env steps, env runners, vectorised sub-envs, checkpoints, fault tolerance.
+
+    A remote env runner (`num_env_runners` > 0) that crashes is always restarted and
+    training goes on with the others meanwhile. `restart_failed_sub_environments` also
+    recreates an env that raises inside a runner (the local one too) instead of failing
+    the trial; off by default, since an env that always raises would then loop forever.
+    """
 
     timesteps: PositiveInt | None = None
     num_env_runners: int = Field(0, ge=0)
     num_envs_per_env_runner: PositiveInt = 8
+    restart_failed_sub_environments: bool = False
+    # Custom Ray resources each trial asks for: {"second_node": 1} runs it only on nodes
+    # started with `ray start --resources '{"second_node": N}'`.
+    resources: dict[str, PositiveFloat] = Field(default_factory=dict)
     checkpoint_every: PositiveInt = 10
     keep_checkpoints: PositiveInt = 2
     eval_episodes: PositiveInt = 200

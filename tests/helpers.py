@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import hashlib
+from pathlib import Path
+
 import numpy as np
 import torch
 from ray.rllib.core.columns import Columns
@@ -51,3 +54,12 @@ def hand_batch(head_ids: list[str], rows: int = 6, num_contexts: int = 4, num_ar
 def params_of(module) -> dict[str, torch.Tensor]:
     """A detached copy of a module's parameters by name."""
     return {k: v.detach().clone() for k, v in module.named_parameters()}
+
+
+def digest(folder: Path) -> str:
+    """One hash of every file's relative path and bytes under `folder`: equal iff nothing changed."""
+    h = hashlib.sha256()
+    for f in sorted(folder.rglob("*")):
+        if f.is_file():
+            h.update(str(f.relative_to(folder)).encode() + f.read_bytes())
+    return h.hexdigest()

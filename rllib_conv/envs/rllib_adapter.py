@@ -84,7 +84,22 @@ class PettingZooMultiAgentEnv(MultiAgentEnv):
         mask = np.ones(n, dtype=np.float32) if mask is None else np.asarray(mask, dtype=np.float32)
         return {RLLIB_OBS_KEY: np.asarray(vec, dtype=np.float32), RLLIB_MASK_KEY: mask}
 
+    def get_rng_state(self) -> dict | None:
+        """The game's RNG state (games keeping a numpy Generator in `_rng`), for exact resumes."""
+        rng = getattr(self.env.unwrapped, "_rng", None)
+        return rng.bit_generator.state if isinstance(rng, np.random.Generator) else None
+
+    def set_rng_state(self, state: dict | None) -> None:
+        """Continue from `state` at the next reset, which then ignores its seed (see `reset`)."""
+        self._pending_rng_state = state
+
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
+        pending = getattr(self, "_pending_rng_state", None)
+        if pending is not None:
+            # A resumed run: RLlib re-seeds every env on its first reset, but the game should
+            # continue its random stream from where the checkpoint left it.
+            self.env.unwrapped._rng.bit_generator.state = pending
+            self._pending_rng_state, seed = None, None
         if self.is_aec:
             self.env.reset(seed=seed, options=options)
             agent = self.env.agent_selection

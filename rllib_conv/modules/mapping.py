@@ -34,6 +34,15 @@ class PartnerMapping:
         """Pair every new episode with `partner` only (None: back to round robin). Used by MAML."""
         self._focus = None if partner is None else self.partners.index(partner)
 
+    def get_state(self) -> dict[str, Any]:
+        """The round-robin position and current assignments (saved with checkpoints)."""
+        return {"next": self._next, "assigned": list(self._assigned.items()), "focus": self._focus}
+
+    def set_state(self, state: dict[str, Any]) -> None:
+        """Restore a state from `get_state`."""
+        self._next, self._focus = state["next"], state["focus"]
+        self._assigned = OrderedDict(state["assigned"])
+
     def partner_for(self, episode_id: str) -> str:
         """Return the partner assigned to `episode_id`, assigning the next one on first sight."""
         if episode_id not in self._assigned:

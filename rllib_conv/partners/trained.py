@@ -63,12 +63,18 @@ class TrainedPolicyPartner(PolicyPartner):
 
     def __init__(self, name: str, checkpoint: str, greedy: bool = True, seed: int = 0) -> None:
         from rllib_conv.modules.task_module import TaskModule
+        from rllib_conv.pipelines.checkpoints import MANIFEST, verify
 
         path = Path(checkpoint)
         if not (path / "class_and_ctor_args.pkl").is_file() or not any(path.glob("module_state*")):
             raise ValueError(f"partner {name!r}: checkpoint {str(path)!r} does not exist or holds no module state")
+        if (path / MANIFEST).is_file():  # populations written by `partners train` are sealed
+            verify(path)
         self.checkpoint = str(path)
-        self.module = TaskModule.from_checkpoint(path)
+        try:
+            self.module = TaskModule.from_checkpoint(path)
+        except Exception as exc:  # a damaged pickle raises anything from EOFError to UnpicklingError
+            raise ValueError(f"partner {name!r}: checkpoint {str(path)!r} cannot be loaded ({type(exc).__name__}: {exc})") from None
         self.module.eval()
         super().__init__(name, lambda obs, mask: self.module.policy(obs, mask).logits, greedy, seed)
 

@@ -26,8 +26,8 @@ from rllib_conv import partners
 from rllib_conv.config import ADAPT_DEFAULTS, SINGLE_HEAD_METHODS, AdaptConfig, ExperimentConfig, validate
 from rllib_conv.modules.multi import AGG_HEAD_ID, TASK_ID
 from rllib_conv.pipelines.algorithm import EgoSetup, build_ppo_config, setup_for
+from rllib_conv.pipelines.checkpoints import RL_MODULE_DIR, AlgorithmCheckpoints, last_checkpoint
 from rllib_conv.pipelines.evaluate import ego_return
-from rllib_conv.pipelines.selfplay import RL_MODULE_DIR
 from rllib_conv.pipelines.train import CONFIG_FILE, head_for
 from rllib_conv.pipelines.tuning import fit
 
@@ -45,14 +45,6 @@ def trial_folders(path: str | Path) -> list[Path]:
     if not trials:
         raise ValueError(f"{str(path)!r} is neither a trained-ego trial folder nor an experiment folder holding some ({CONFIG_FILE} missing)")
     return trials
-
-
-def last_checkpoint(trial: Path) -> Path:
-    """The trial's newest checkpoint folder; ValueError if it has none."""
-    checkpoints = sorted(trial.glob("checkpoint_*"), key=lambda p: int(p.name.rsplit("_", 1)[1]))
-    if not checkpoints or not (checkpoints[-1] / RL_MODULE_DIR / TASK_ID).is_dir():
-        raise ValueError(f"trained ego {str(trial)!r} has no complete checkpoint (checkpoint_*/{RL_MODULE_DIR}/{TASK_ID})")
-    return checkpoints[-1]
 
 
 def adapt_setup(cfg: AdaptConfig) -> tuple[EgoSetup, dict[str, str], ExperimentConfig]:
@@ -87,7 +79,7 @@ def adapt_setup(cfg: AdaptConfig) -> tuple[EgoSetup, dict[str, str], ExperimentC
     return setup_for(exp, pop, [entry]), load, trained
 
 
-class AdaptTrainable(tune.Trainable):
+class AdaptTrainable(AlgorithmCheckpoints, tune.Trainable):
     """One adaptation curve: evaluate, update, evaluate, ... until `steps` env steps."""
 
     def setup(self, config: dict[str, Any]) -> None:
@@ -128,13 +120,11 @@ class AdaptTrainable(tune.Trainable):
             self.steps = int(self.algo.train()["env_runners"]["num_env_steps_sampled_lifetime"])
         return {**row, "done": done}
 
-    def save_checkpoint(self, checkpoint_dir: str) -> None:
-        self.algo.save_to_path(checkpoint_dir)
-        Path(checkpoint_dir, STEPS_FILE).write_text(json.dumps({"steps": self.steps}))
+    def save_extra(self, checkpoint_dir: Path) -> None:
+        (checkpoint_dir / STEPS_FILE).write_text(json.dumps({"steps": self.steps}))
 
-    def load_checkpoint(self, checkpoint: str) -> None:
-        self.algo.restore_from_path(checkpoint)
-        self.steps = json.loads(Path(checkpoint, STEPS_FILE).read_text())["steps"]
+    def load_extra(self, checkpoint_dir: Path) -> None:
+        self.steps = json.loads((checkpoint_dir / STEPS_FILE).read_text())["steps"]
 
     def cleanup(self) -> None:
         self.algo.stop()

@@ -122,6 +122,10 @@ def base_ppo_config(game: str, env_config: dict, ppo: PPOSettings, run: RunSetti
             # step (quadratic in episodes per sample call); one-step games suffer most.
             episodes_to_numpy=False,
         )
+        .fault_tolerance(
+            restart_failed_env_runners=True,
+            restart_failed_sub_environments=run.restart_failed_sub_environments,
+        )
         .training(
             lr=ppo.lr,
             gamma=ppo.gamma,
@@ -154,7 +158,9 @@ def build_ppo_config(setup: EgoSetup, load: dict[str, str] | None = None) -> PPO
     return (
         base_ppo_config(setup.population.env, setup.env_config, ppo, exp.run, exp.seed, ppo.rollout_per_partner * len(setup.train))
         .multi_agent(
-            policies=set(specs),
+            # A list, not a set: module build order (and so initial weights) must not depend on
+            # string hashing, which differs per process (Tune runs each trial in its own).
+            policies=list(specs),
             policy_mapping_fn=mapping,
             policies_to_train=[TASK_ID, *setup.head_ids],
         )

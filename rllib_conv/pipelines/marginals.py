@@ -69,7 +69,7 @@ def marginal_states(population: Population, episodes: int = 200, seed: int = 0) 
 
 def marginal_report(trials: list[Path], episodes: int = 200, seed: int = 0) -> pd.DataFrame:
     """One row per trained ego with a task output: its task module's distance to the true marginals."""
-    from rllib_conv.pipelines.adapt import last_checkpoint
+    from rllib_conv.pipelines.checkpoints import last_checkpoint
     from rllib_conv.pipelines.train import CONFIG_FILE
 
     rows, states = [], {}

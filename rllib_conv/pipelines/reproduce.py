@@ -243,10 +243,14 @@ class Reproduction:
 
 
 def reproduce(game: str, out: str | Path = "reproduce", seeds: int = 3, quick: bool = False, address: str | None = None) -> dict[str, dict[str, float]]:
-    """Run `game` (or `all`) and return the stage wall times per game."""
+    """Run `game` (or `all`), then build `<out>/report/report.md` over every game under `out`; return the stage wall times per game."""
+    from analysis.report import build_report
+
     games = GAMES if game == "all" else (game,)
     plans = [plan_for(g, seeds, quick) for g in games]  # validate every game before running any
-    return {p.game: Reproduction(p, Path(out) / p.game, address).run() for p in plans}
+    times = {p.game: Reproduction(p, Path(out) / p.game, address).run() for p in plans}
+    print(f"report: {build_report(out)}")
+    return times
 
 
 def stage_table(root: str | Path) -> pd.DataFrame:

@@ -39,12 +39,12 @@ from rllib_conv.partners.play import play_episodes
 from rllib_conv.partners.population import PartnerEntry, Population
 from rllib_conv.partners.trained import PolicyPartner
 from rllib_conv.pipelines.algorithm import base_ppo_config
-from rllib_conv.pipelines.tuning import fit
+from rllib_conv.pipelines.checkpoints import RL_MODULE_DIR, AlgorithmCheckpoints, seal, verify
+from rllib_conv.pipelines.tuning import fit, trial_resources
 
 SEAT_PREFIX = "seat@"
 SHARED_SEAT = "seat@all"
 REPORT_FILE = "selfplay.json"
-RL_MODULE_DIR = Path("learner_group") / "learner" / "rl_module"
 
 
 def seat_module_id(cfg: SelfPlayConfig, agent: str) -> str:
@@ -82,7 +82,8 @@ def build_selfplay_config(cfg: SelfPlayConfig) -> PPOConfig:
     }
     return (
         base_ppo_config(cfg.env, cfg.env_config, cfg.ppo, cfg.run, cfg.seed + cfg.pair, cfg.ppo.rollout_per_partner)
-        .multi_agent(policies=set(specs), policy_mapping_fn=SeatMapping(cfg.shared_seats), policies_to_train=list(specs))
+        # A list, not a set: see build_ppo_config.
+        .multi_agent(policies=list(specs), policy_mapping_fn=SeatMapping(cfg.shared_seats), policies_to_train=list(specs))
         .rl_module(rl_module_spec=MultiRLModuleSpec(rl_module_specs=specs))
         .learners(learner_class=MarginalPPOLearner, learner_config_dict={"lam": 0.0, "adam_eps": cfg.ppo.adam_eps})
     )
@@ -101,7 +102,7 @@ def selfplay_score(module: Any, cfg: SelfPlayConfig, episodes: int, seed: int) -
     return float(play_episodes(env, seats, episodes, seed).mean())
 
 
-class SelfPlayTrainable(tune.Trainable):
+class SelfPlayTrainable(AlgorithmCheckpoints, tune.Trainable):
     """One self-play pair: trains until it passes the score gate or its step budget runs out."""
 
     def setup(self, config: dict[str, Any]) -> None:
@@ -145,19 +146,12 @@ class SelfPlayTrainable(tune.Trainable):
             out.update({k: v for k, v in report.items() if k not in out})
         return out
 
-    def save_checkpoint(self, checkpoint_dir: str) -> None:
-        self.algo.save_to_path(checkpoint_dir)
-
-    def load_checkpoint(self, checkpoint: str) -> None:
-        self.algo.restore_from_path(checkpoint)
-
     def cleanup(self) -> None:
         self.algo.stop()
 
     @classmethod
     def default_resource_request(cls, config: dict[str, Any]) -> PlacementGroupFactory:
-        runners = int(config.get("run", {}).get("num_env_runners", 0) or 0)
-        return PlacementGroupFactory([{"CPU": 1}] + [{"CPU": 1}] * runners)
+        return trial_resources(config.get("run"))
 
 
 def write_population(cfg: SelfPlayConfig, results: tune.ResultGrid, folder: Path) -> tuple[Population, pd.DataFrame]:
@@ -174,9 +168,10 @@ def write_population(cfg: SelfPlayConfig, results: tune.ResultGrid, folder: Path
         rows.append({"partner": name, "split": split, **report})
         if not report.get("passed") or r.checkpoint is None:
             continue
+        verify(r.checkpoint.path)
         modules = Path(r.checkpoint.path) / RL_MODULE_DIR
         for sub, agent in (("partners", cfg.partner_agent), ("counterparts", counterpart_agent)):
-            shutil.copytree(modules / seat_module_id(cfg, agent), folder / sub / name)
+            seal(shutil.copytree(modules / seat_module_id(cfg, agent), folder / sub / name))
         params = {"greedy": cfg.greedy_partners, "seed": report["seed"]}
         entries.append(
             PartnerEntry(

@@ -24,10 +24,11 @@ from rllib_conv.envs.oracles import has_oracle
 from rllib_conv.learners.marginal_learner import MARGINAL_REG_KEY
 from rllib_conv.modules.multi import AGG_HEAD_ID, ego_id, partner_id
 from rllib_conv.pipelines.algorithm import EgoSetup, build_ppo_config, resolve
+from rllib_conv.pipelines.checkpoints import AlgorithmCheckpoints
 from rllib_conv.pipelines.evaluate import ego_return, marginal_distances
 from rllib_conv.pipelines.maml import MetaTrainer
 from rllib_conv.pipelines.marginals import TASK_OUTPUT_METHODS, marginal_states
-from rllib_conv.pipelines.tuning import fit
+from rllib_conv.pipelines.tuning import fit, trial_resources
 
 EVAL_FILE = "eval.json"
 CONFIG_FILE = "config.yaml"
@@ -70,12 +71,13 @@ def evaluate(module: Any, setup: EgoSetup, episodes: int, seed: int = 0) -> dict
     return out
 
 
-class EgoTrainable(tune.Trainable):
+class EgoTrainable(AlgorithmCheckpoints, tune.Trainable):
     """One ego-training trial: builds the PPO algorithm, trains it, checkpoints and evaluates it."""
 
     def setup(self, config: dict[str, Any]) -> None:
         import torch
 
+        begin = time.perf_counter()
         torch.set_num_threads(1)
         self.ego = resolve(ExperimentConfig.model_validate(config))
         self.algo = build_ppo_config(self.ego).build_algo()
@@ -87,30 +89,25 @@ class EgoTrainable(tune.Trainable):
         )
         Path(self.logdir, CONFIG_FILE).write_text(yaml.safe_dump(self.ego.exp.model_dump(), sort_keys=False))
         self._start = time.perf_counter()
+        self._setup_s = self._start - begin
 
     def step(self) -> dict[str, Any]:
         metrics = summarize(self.meta.step() if self.meta else self.algo.train(), self.ego)
         metrics["done"] = metrics["env_steps"] >= self.ego.exp.run.timesteps
         if metrics["done"]:
             final = evaluate(self.algo.env_runner.module, self.ego, self.ego.exp.run.eval_episodes, self.ego.exp.seed)
-            final["wall_s"] = time.perf_counter() - self._start
+            final["wall_s"] = time.perf_counter() - self._start  # training and evaluation, after setup
+            final["setup_s"] = self._setup_s
             Path(self.logdir, EVAL_FILE).write_text(json.dumps(final, indent=2) + "\n")
             metrics.update(final)
         return metrics
-
-    def save_checkpoint(self, checkpoint_dir: str) -> None:
-        self.algo.save_to_path(checkpoint_dir)
-
-    def load_checkpoint(self, checkpoint: str) -> None:
-        self.algo.restore_from_path(checkpoint)
 
     def cleanup(self) -> None:
         self.algo.stop()
 
     @classmethod
     def default_resource_request(cls, config: dict[str, Any]) -> PlacementGroupFactory:
-        runners = int(config.get("run", {}).get("num_env_runners", 0) or 0)
-        return PlacementGroupFactory([{"CPU": 1}] + [{"CPU": 1}] * runners)
+        return trial_resources(config.get("run"))
 
 
 def to_param_space(raw: Any) -> Any:
@@ -122,15 +119,17 @@ def to_param_space(raw: Any) -> Any:
     return raw
 
 
-def run(raw: dict[str, Any], storage: str | Path = "runs", address: str | None = None) -> tune.ResultGrid:
+def run(
+    raw: dict[str, Any], storage: str | Path = "runs", address: str | None = None, progress: str = "lines", resume: bool = False
+) -> tune.ResultGrid:
     """Run the experiment `raw` (already validated by `config.load`) through Tune; return its results.
 
     Results go to `storage/<name>/`, with the experiment's config in `experiment.yaml`;
-    running the same experiment again continues it (see `tuning.fit`).
+    running the same experiment again continues it (see `tuning.fit` for `progress` and `resume`).
     """
     variants = validate(raw)
     for exp in variants:
         resolve(exp)  # unknown population, wrong seat, bad env config: fail before anything is written
     first = variants[0]
     checkpoint = tune.CheckpointConfig(num_to_keep=first.run.keep_checkpoints, checkpoint_frequency=first.run.checkpoint_every, checkpoint_at_end=True)
-    return fit(EgoTrainable, raw, to_param_space(raw), first.name, storage, address, checkpoint)
+    return fit(EgoTrainable, raw, to_param_space(raw), first.name, storage, address, checkpoint, progress, resume)

@@ -26,10 +26,10 @@ from rllib_conv import partners
 from rllib_conv.config import ZEROSHOT_DEFAULTS, ExperimentConfig, ZeroShotConfig, validate
 from rllib_conv.modules.mlp import mlp
 from rllib_conv.modules.multi import TASK_ID, ego_id
-from rllib_conv.pipelines.adapt import last_checkpoint, trial_folders
+from rllib_conv.pipelines.adapt import trial_folders
 from rllib_conv.pipelines.algorithm import build_ppo_config, push_learner_weights, setup_for
+from rllib_conv.pipelines.checkpoints import RL_MODULE_DIR, last_checkpoint
 from rllib_conv.pipelines.evaluate import ego_return
-from rllib_conv.pipelines.selfplay import RL_MODULE_DIR
 from rllib_conv.pipelines.train import CONFIG_FILE
 from rllib_conv.pipelines.tuning import fit
 

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import hashlib
 from pathlib import Path
 
 import numpy as np
@@ -15,14 +14,7 @@ from rllib_conv.pipelines.adapt import CURVE_COLUMNS, adapt_setup, run_adaptatio
 from rllib_conv.pipelines.algorithm import build_ppo_config, resolve
 from rllib_conv.pipelines.maml import META_MODULES, MetaTrainer, outer_update, snapshot
 from rllib_conv.pipelines.zeroshot import run_zeroshot
-
-
-def digest(folder: Path) -> str:
-    h = hashlib.sha256()
-    for f in sorted(folder.rglob("*")):
-        if f.is_file():
-            h.update(f.name.encode() + f.read_bytes())
-    return h.hexdigest()
+from tests.helpers import digest
 
 
 def test_adaptation_adds_a_fresh_head_and_reaches_the_new_partner(bandit_egos, tmp_path) -> None:

@@ -1,0 +1,405 @@
+"""Read a reproduction's folders into tidy pandas DataFrames, from files on disk only.
+
+`rllib-conv reproduce GAME --out ROOT` writes `ROOT/<game>/` (see
+`rllib_conv.pipelines.reproduce`). Every loader here takes either such a ROOT (all game
+folders under it) or one game folder, never starts Ray or loads a checkpoint, and returns
+an empty frame with the documented columns when the files are absent, so a report can
+be built from a partial or still-running reproduction.
+
+Identifiers shared by the frames: `game` (plan.json's game, else the folder name),
+`population` and `label` (from the experiment name `<population>__<label>`, where label
+is the method label such as `modular-lam0.5`, `lowz-lam0.5`, `agg`, `no_task_logits`,
+`maml`, `oracle`, `scratch`), `run` (a trained ego's trial folder), `trial` (its folder name).
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+from typing import Any, Iterable
+
+import pandas as pd
+import yaml
+
+STAGES: tuple[str, ...] = ("selfplay", "train", "adapt", "zeroshot", "marginals")
+# Experiment folders under runs/ that are Tune internals of later stages, not trained egos.
+AUX_PREFIXES: tuple[str, ...] = ("adapt-", "zeroshot-", "selfplay-")
+# Columns that may hold the environment-step counter, in order of preference (ours, new RLlib API, old Tune).
+STEP_COLUMNS: tuple[str, ...] = ("env_steps", "num_env_steps_sampled_lifetime", "timesteps_total")
+# Highest score per game: 1 coordinated pull; 2 blocks x 10 points; 5 Hanabi cards.
+MAX_SCORE: dict[str, float] = {"bandit": 1.0, "blocks": 20.0, "hanabi": 5.0}
+
+_GAME_MARKERS = ("plan.json", "runs", "adaptation", "zeroshot", "marginals.csv", "populations")
+
+
+def _is_game_dir(path: Path) -> bool:
+    return path.is_dir() and (any((path / m).exists() for m in _GAME_MARKERS) or any(path.glob("*.done")))
+
+
+def game_dirs(root: str | Path) -> list[Path]:
+    """The game folders under `root` (or `[root]` when `root` is itself a game folder), sorted by name."""
+    root = Path(root)
+    if _is_game_dir(root):
+        return [root]
+    if not root.is_dir():
+        return []
+    return sorted(p for p in root.iterdir() if _is_game_dir(p))
+
+
+def read_plan(game_dir: str | Path) -> dict[str, Any]:
+    """plan.json of a game folder ({"game", "seeds", "quick"}); with no file, {"game": <folder name>}."""
+    game_dir = Path(game_dir)
+    path = game_dir / "plan.json"
+    plan = json.loads(path.read_text()) if path.is_file() else {}
+    plan.setdefault("game", game_dir.name)
+    return plan
+
+
+def game_of(game_dir: str | Path) -> str:
+    """The game a folder holds (plan.json's `game`, else the folder name)."""
+    return str(read_plan(game_dir)["game"])
+
+
+def split_experiment(name: str) -> tuple[str, str]:
+    """Split an experiment or file stem `<population>__<label>` into (population, label); no `__` gives (name, "")."""
+    population, sep, label = name.partition("__")
+    return (population, label) if sep else (name, "")
+
+
+def _empty(columns: Iterable[str]) -> pd.DataFrame:
+    return pd.DataFrame(columns=list(columns))
+
+
+def _concat(frames: list[pd.DataFrame], columns: Iterable[str]) -> pd.DataFrame:
+    frames = [f for f in frames if not f.empty]
+    return pd.concat(frames, ignore_index=True) if frames else _empty(columns)
+
+
+# --- stage markers -----------------------------------------------------------------------
+
+STAGE_COLUMNS = ["game", "stage", "expected", "done", "seconds"]
+
+
+def expected_stages(game: str, quick: bool = False) -> tuple[str, ...]:
+    """The stages `rllib-conv reproduce` runs for `game` (mirrors `Reproduction.stages`; read here so that no Ray import is needed).
+
+    Zero-shot needs a new task with the same partners: bandit, and blocks except in the
+    quick plan; Hanabi has neither zero-shot nor marginals (no oracle).
+    """
+    stages = ["selfplay", "train", "adapt"]
+    if game == "bandit" or (game == "blocks" and not quick):
+        stages.append("zeroshot")
+    if game in ("bandit", "blocks"):
+        stages.append("marginals")
+    return tuple(stages)
+
+
+def load_stage_times(root: str | Path) -> pd.DataFrame:
+    """One row per (game, stage) of `STAGES`: whether the game's plan has it, whether its `<stage>.done` marker exists, and the wall seconds it records."""
+    rows = []
+    for game_dir in game_dirs(root):
+        plan = read_plan(game_dir)
+        game = str(plan["game"])
+        expected = expected_stages(game, bool(plan.get("quick", False)))
+        for stage in STAGES:
+            marker = game_dir / f"{stage}.done"
+            seconds = float("nan")
+            if marker.is_file():
+                # The marker's text is the stage's wall time, written as "123.4 s".
+                match = re.match(r"\s*([0-9.eE+-]+)", marker.read_text())
+                seconds = float(match.group(1)) if match else float("nan")
+            rows.append({"game": game, "stage": stage, "expected": stage in expected or marker.is_file(), "done": marker.is_file(), "seconds": seconds})
+    return pd.DataFrame(rows, columns=STAGE_COLUMNS)
+
+
+# --- trained egos ------------------------------------------------------------------------
+
+TRIAL_COLUMNS = ["game", "experiment", "population", "label", "trial", "run", "method", "lam", "z_dim", "seed", "env"]
+
+
+def trial_dirs(game_dir: str | Path) -> list[Path]:
+    """The trained-ego trial folders of a game folder: `runs/<population>__<label>/<trial>/` holding a config.yaml."""
+    runs = Path(game_dir) / "runs"
+    if not runs.is_dir():
+        return []
+    return sorted(
+        t.parent
+        for exp in runs.iterdir()
+        if exp.is_dir() and "__" in exp.name and not exp.name.startswith(AUX_PREFIXES)
+        for t in exp.glob("*/config.yaml")
+    )
+
+
+def trial_info(trial: str | Path, game: str | None = None) -> dict[str, Any]:
+    """The identifiers of one trial folder (see `TRIAL_COLUMNS`), read from its path and config.yaml."""
+    trial = Path(trial)
+    cfg = yaml.safe_load((trial / "config.yaml").read_text()) or {}
+    population, label = split_experiment(trial.parent.name)
+    if not label:  # not a reproduce experiment (`<population>__<label>`): a sweep's trial names its population itself
+        population = str(cfg.get("population", population))
+    model = cfg.get("model") or {}
+    return {
+        "game": game or cfg.get("env", ""),
+        "experiment": trial.parent.name,
+        "population": population,
+        "label": label,
+        "trial": trial.name,
+        "run": str(trial),
+        "method": cfg.get("method"),
+        "lam": float(cfg.get("lam", 0.0) or 0.0),
+        # z_dim null means z is the task module's last hidden layer (the paper's default).
+        "z_dim": model.get("z_dim") or model.get("hidden"),
+        "seed": cfg.get("seed"),
+        "env": cfg.get("env"),
+    }
+
+
+def _read_progress(trial: Path) -> pd.DataFrame:
+    """Tune's progress.csv of a trial, or its result.json (one JSON object a line) when the CSV is absent or empty."""
+    csv = trial / "progress.csv"
+    if csv.is_file() and csv.stat().st_size > 0:
+        try:
+            # on_bad_lines: a running trial may be caught mid-write; a torn last line is dropped.
+            return pd.read_csv(csv, on_bad_lines="skip")
+        except (pd.errors.EmptyDataError, pd.errors.ParserError):
+            pass
+    results = trial / "result.json"
+    if results.is_file():
+        rows = []
+        for line in results.read_text().splitlines():
+            try:
+                row = json.loads(line)
+            except json.JSONDecodeError:
+                continue  # a torn last line of a running trial
+            row.pop("config", None)  # the trial's whole config, repeated on every line
+            rows.append(row)
+        return pd.DataFrame(rows)
+    return pd.DataFrame()
+
+
+def load_training(root: str | Path) -> pd.DataFrame:
+    """Training curves: one row per trained-ego trial and training iteration.
+
+    Columns: `TRIAL_COLUMNS`, `training_iteration`, `steps` (environment steps sampled so
+    far, from the first of `STEP_COLUMNS` present) and every metric column of the trial's
+    progress.csv (for ours: return_mean, return/<partner>, marginal_reg, time_total_s ...).
+    A trial restored after an interruption logs some iterations twice; the last log wins.
+    """
+    frames = [_trial_curve(trial, game_of(game_dir)) for game_dir in game_dirs(root) for trial in trial_dirs(game_dir)]
+    return _concat(frames, [*TRIAL_COLUMNS, "steps", "training_iteration"])
+
+
+def load_sweep(experiment: str | Path) -> pd.DataFrame:
+    """Training curves of one `rllib-conv sweep` (or `train`) experiment folder, `STORAGE/NAME`.
+
+    One row per trial and iteration, with the columns of `load_training`; the swept values
+    (population, method, lam, seed, z_dim) come from each trial's config.yaml. ValueError
+    if the folder holds no trial.
+    """
+    trials = sorted(p.parent for p in Path(experiment).glob("*/config.yaml"))
+    if not trials:
+        raise ValueError(f"{str(experiment)!r} holds no trained-ego trial (no */config.yaml); expected a sweep's STORAGE/NAME folder")
+    return _concat([_trial_curve(t) for t in trials], [*TRIAL_COLUMNS, "steps", "training_iteration"])
+
+
+def _trial_curve(trial: Path, game: str | None = None) -> pd.DataFrame:
+    """One trial's progress, one row per iteration (the last log of a re-run iteration), with its identifiers."""
+    progress = _read_progress(trial)
+    if progress.empty or "training_iteration" not in progress.columns:
+        return pd.DataFrame()
+    progress = progress.drop_duplicates("training_iteration", keep="last").sort_values("training_iteration")
+    step_column = next((c for c in STEP_COLUMNS if c in progress.columns), None)
+    steps = progress[step_column] if step_column else pd.Series(float("nan"), index=progress.index)
+    info = trial_info(trial, game)
+    ident = pd.DataFrame({k: [v] * len(progress) for k, v in info.items()}, index=progress.index)
+    ident["steps"] = steps
+    metrics = progress.drop(columns=[c for c in ident.columns if c in progress.columns])
+    return pd.concat([ident, metrics], axis=1).reset_index(drop=True)
+
+
+EVAL_COLUMNS = [*TRIAL_COLUMNS, "partner", "mean_return", "stderr", "exact_return", "marginal_distance", "marginal_distance_all", "wall_s"]
+
+
+def load_evals(root: str | Path) -> pd.DataFrame:
+    """Final evaluation of each trained ego with each training partner (eval.json): one row per trial and partner.
+
+    Columns `EVAL_COLUMNS`; `exact_return` is NaN where the game has no exact expectation,
+    the marginal distances (the trial's, repeated on each of its rows) NaN for methods without them.
+    """
+    rows = []
+    for game_dir in game_dirs(root):
+        game = game_of(game_dir)
+        for trial in trial_dirs(game_dir):
+            path = trial / "eval.json"
+            if not path.is_file():
+                continue
+            try:
+                ev = json.loads(path.read_text())
+            except json.JSONDecodeError:
+                continue  # being written by a running reproduction
+            info = trial_info(trial, game)
+            partners = sorted({k.split("/", 2)[2] for k in ev if k.startswith("eval/mean/")})
+            for partner in partners:
+                rows.append(
+                    {
+                        **info,
+                        "partner": partner,
+                        "mean_return": ev.get(f"eval/mean/{partner}"),
+                        "stderr": ev.get(f"eval/stderr/{partner}"),
+                        "exact_return": ev.get(f"eval/exact/{partner}", float("nan")),
+                        "marginal_distance": ev.get("eval/marginal_distance/paper", float("nan")),
+                        "marginal_distance_all": ev.get("eval/marginal_distance/all", float("nan")),
+                        "wall_s": ev.get("wall_s", float("nan")),
+                    }
+                )
+    return pd.DataFrame(rows, columns=EVAL_COLUMNS)
+
+
+# --- stage tables ------------------------------------------------------------------------
+
+
+def _read_tables(root: str | Path, folder: str) -> list[pd.DataFrame]:
+    """Every `<game>/<folder>/<population>__<label>.csv`, with game, population, label, experiment, trial columns added."""
+    frames = []
+    for game_dir in game_dirs(root):
+        game = game_of(game_dir)
+        for path in sorted((game_dir / folder).glob("*.csv")):
+            table = pd.read_csv(path)
+            if table.empty:
+                continue
+            population, label = split_experiment(path.stem)
+            table.insert(0, "label", label)
+            table.insert(0, "population", population)
+            table.insert(0, "game", game)
+            # The run paths are absolute on the machine that ran them; the trial folder name is portable.
+            table["trial"] = [Path(str(r)).name for r in table["run"]]
+            table["experiment"] = [Path(str(r)).parent.name for r in table["run"]]
+            if "exact_return" not in table.columns:
+                table["exact_return"] = float("nan")
+            frames.append(table)
+    return frames
+
+
+ADAPT_COLUMNS = ["game", "population", "label", "run", "method", "lam", "z_dim", "seed", "partner", "steps", "mean_return", "stderr", "exact_return", "trial", "experiment"]
+
+
+def load_adaptation(root: str | Path) -> pd.DataFrame:
+    """Adaptation curves: one row per (trained ego run, test partner, adaptation step count) from `adaptation/*.csv`.
+
+    Columns `ADAPT_COLUMNS`. For `scratch`, `run` is the modular ego whose seed it shares
+    (a fresh network is trained; nothing is loaded from that run).
+    """
+    return _concat(_read_tables(root, "adaptation"), ADAPT_COLUMNS)
+
+
+ZEROSHOT_COLUMNS = ["game", "population", "label", "run", "method", "lam", "seed", "partner", "mean_return", "stderr", "exact_return", "trial", "experiment"]
+
+
+def load_zeroshot(root: str | Path) -> pd.DataFrame:
+    """Zero-shot results on the new task: one row per (trained ego run, test partner) from `zeroshot/*.csv`. Columns `ZEROSHOT_COLUMNS`."""
+    return _concat(_read_tables(root, "zeroshot"), ZEROSHOT_COLUMNS)
+
+
+MARGINAL_COLUMNS = ["game", "population", "label", "run", "env", "env_config", "method", "lam", "z_dim", "seed", "distance", "distance_all_states", "states", "experiment", "trial"]
+
+
+def load_marginals(root: str | Path) -> pd.DataFrame:
+    """Task-module distances to the true marginals: one row per trained ego (marginals.csv). Columns `MARGINAL_COLUMNS`.
+
+    `distance` averages over the states the paper's figure uses (more than one optimal
+    action), `distance_all_states` over every state.
+    """
+    frames = []
+    for game_dir in game_dirs(root):
+        path = game_dir / "marginals.csv"
+        if not path.is_file():
+            continue
+        table = pd.read_csv(path)
+        if table.empty:
+            continue
+        table.insert(0, "game", game_of(game_dir))
+        experiments = table["experiment"] if "experiment" in table.columns else [Path(str(r)).parent.name for r in table["run"]]
+        table["experiment"] = list(experiments)
+        table["population"] = [split_experiment(e)[0] for e in table["experiment"]]
+        table["label"] = [split_experiment(e)[1] for e in table["experiment"]]
+        table["trial"] = [Path(str(r)).name for r in table["run"]]
+        frames.append(table)
+    out = _concat(frames, MARGINAL_COLUMNS)
+    return out[[c for c in MARGINAL_COLUMNS if c in out.columns] + [c for c in out.columns if c not in MARGINAL_COLUMNS]]
+
+
+SELFPLAY_COLUMNS = ["game", "population", "partner", "split", "pair", "seed", "passed", "score", "steps_to_gate", "env_steps", "wall_s"]
+
+
+def load_selfplay_reports(root: str | Path) -> pd.DataFrame:
+    """Self-play population reports: one row per trained pair (`populations/<name>/selfplay_report.csv`). Columns `SELFPLAY_COLUMNS`."""
+    frames = []
+    for game_dir in game_dirs(root):
+        for path in sorted((game_dir / "populations").glob("*/selfplay_report.csv")):
+            table = pd.read_csv(path)
+            table.insert(0, "population", path.parent.name)
+            table.insert(0, "game", game_of(game_dir))
+            table["passed"] = table["passed"].astype(str).str.lower().isin(["true", "1"])
+            frames.append(table)
+    return _concat(frames, SELFPLAY_COLUMNS)
+
+
+def load_crossplay(root: str | Path) -> dict[str, pd.DataFrame]:
+    """Cross-play matrices (CSVs of `rllib_conv.pipelines.crossplay.write_crossplay`) found in `crossplay/` folders.
+
+    Looks in `ROOT/crossplay/` and `<game>/crossplay/`; returns {file stem: square
+    matrix}, rows = population A's members in the ego seat, columns = B's members.
+    """
+    root = Path(root)
+    folders = [root / "crossplay", *(g / "crossplay" for g in game_dirs(root) if g != root)]
+    out: dict[str, pd.DataFrame] = {}
+    for folder in folders:
+        for path in sorted(folder.glob("*.csv")):
+            matrix = pd.read_csv(path, index_col=0)
+            if not matrix.empty:
+                out[path.stem] = matrix
+    return out
+
+
+# --- user study --------------------------------------------------------------------------
+
+
+def user_study_files(paths: str | Path | Iterable[str | Path] | None = None) -> list[Path]:
+    """The user-study CSVs named by `paths` (files, or folders whose *.csv are taken); None gives the paper's table."""
+    if paths is None:
+        from rllib_conv.partners.user_study import DEFAULT_PATH
+
+        return [DEFAULT_PATH]
+    if isinstance(paths, (str, Path)):
+        paths = [paths]
+    files: list[Path] = []
+    for p in map(Path, paths):
+        if p.is_dir():
+            files += sorted(p.glob("*.csv"))
+        elif p.is_file():
+            files.append(p)
+        else:
+            raise FileNotFoundError(f"user-study CSV or folder {str(p)!r} does not exist")
+    return files
+
+
+def load_user_study_csvs(paths: str | Path | Iterable[str | Path] | None = None) -> pd.DataFrame:
+    """Read and concatenate user-study CSVs (the paper's table and/or recorded live sessions).
+
+    Each file is validated by `rllib_conv.partners.user_study.load_user_study` (one row per
+    pair, task, context and try; `coordinated` = the try won the prize). Added columns:
+    `source` (the file name) and `pair_id` ("<source>:<pair>"), because live sessions
+    recorded in separate files may reuse pair numbers.
+    """
+    from rllib_conv.partners.user_study import load_user_study  # lazy: the package imports torch
+
+    frames = []
+    for path in user_study_files(paths):
+        df = load_user_study(path)
+        df["source"] = path.name
+        df["pair_id"] = [f"{path.name}:{p}" for p in df["pair"]]
+        frames.append(df)
+    if not frames:
+        return _empty(["pair", "task", "context", "try", "action_1", "action_2", "arm_1", "arm_2", "coordinated", "source", "pair_id"])
+    return pd.concat(frames, ignore_index=True)

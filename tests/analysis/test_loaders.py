@@ -1,0 +1,214 @@
+"""Loaders on the fixture run folder (a subset of a real quick bandit reproduction), and the summary statistics."""
+
+from __future__ import annotations
+
+import math
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from analysis import loaders
+from analysis.summaries import adaptation_auc, mean_ci, summarise, t975, value_column, with_value
+
+FIXTURE = Path(__file__).parent / "fixtures" / "repro"
+GAME = FIXTURE / "bandit"
+S2_MODULAR = "bandit-s2-hand__modular-lam0.5"
+
+
+@pytest.fixture()
+def copy(tmp_path: Path) -> Path:
+    """A writable copy of the fixture root."""
+    target = tmp_path / "repro"
+    shutil.copytree(FIXTURE, target)
+    return target
+
+
+def test_game_dirs_from_root_or_game_folder(tmp_path: Path) -> None:
+    assert loaders.game_dirs(FIXTURE) == [GAME]
+    assert loaders.game_dirs(GAME) == [GAME]
+    assert loaders.game_dirs(tmp_path) == []
+    assert loaders.read_plan(GAME) == {"game": "bandit", "seeds": [0], "quick": True}
+
+
+def test_stage_times() -> None:
+    st = loaders.load_stage_times(FIXTURE).set_index("stage")
+    assert list(st.index) == list(loaders.STAGES)
+    assert st["done"].all()
+    # The .done markers read "65.0 s", "30.8 s", "104.4 s", "0.0 s", "0.1 s".
+    assert st.loc["train", "seconds"] == 65.0 and st.loc["adapt", "seconds"] == 30.8 and st.loc["zeroshot", "seconds"] == 104.4
+
+
+def test_expected_stages() -> None:
+    assert loaders.expected_stages("bandit") == loaders.STAGES
+    assert loaders.expected_stages("blocks", quick=True) == ("selfplay", "train", "adapt", "marginals")
+    assert loaders.expected_stages("hanabi") == ("selfplay", "train", "adapt")
+
+
+def test_stage_times_missing_marker(copy: Path) -> None:
+    (copy / "bandit" / "zeroshot.done").unlink()
+    st = loaders.load_stage_times(copy).set_index("stage")
+    assert not st.loc["zeroshot", "done"] and st.loc["zeroshot", "expected"] and math.isnan(st.loc["zeroshot", "seconds"])
+    assert st.loc["train", "done"]
+
+
+def test_training_one_row_per_trial_and_iteration() -> None:
+    tr = loaders.load_training(FIXTURE)
+    # 4 trained-ego trials x 8 iterations; runs/adapt-* (Tune internals) is ignored.
+    assert len(tr) == 32
+    assert tr["run"].nunique() == 4
+    assert set(tr["experiment"]) == {"bandit-s1-hand__modular-lam0.5", "bandit-s1-hand__no_task_logits", "bandit-s2-hand__agg", S2_MODULAR}
+    s2 = tr[tr["experiment"] == S2_MODULAR].sort_values("training_iteration")
+    assert s2["training_iteration"].tolist() == list(range(1, 9))
+    assert s2["steps"].tolist() == [256 * i for i in range(1, 9)]  # the env_steps column
+    first = s2.iloc[0]
+    assert (first["game"], first["population"], first["label"], first["method"], first["lam"], first["seed"]) == ("bandit", "bandit-s2-hand", "modular-lam0.5", "modular", 0.5, 0)
+    assert first["z_dim"] == 30  # z_dim null in config.yaml: z is the last hidden layer (hidden 30)
+    assert s2["return_mean"].iloc[-1] == pytest.approx(0.703125)  # progress.csv, last line
+    assert "return/hand-train-3" in tr.columns and "marginal_reg" in tr.columns
+
+
+def test_training_restored_trial_keeps_last_log(copy: Path) -> None:
+    progress = next((copy / "bandit" / "runs" / S2_MODULAR).glob("*/progress.csv"))
+    lines = progress.read_text().splitlines()
+    # A restored trial re-logs its last iteration; the second log must win.
+    relog = lines[-1].replace("0.703125,", "0.5,", 1)
+    progress.write_text("\n".join([*lines, relog]) + "\n")
+    tr = loaders.load_training(copy)
+    s2 = tr[tr["experiment"] == S2_MODULAR]
+    assert len(s2) == 8
+    assert s2.loc[s2["training_iteration"] == 8, "return_mean"].item() == 0.5
+
+
+def test_training_falls_back_to_result_json(copy: Path) -> None:
+    progress = next((copy / "bandit" / "runs" / S2_MODULAR).glob("*/progress.csv"))
+    progress.unlink()
+    s2 = loaders.load_training(copy).query("experiment == @S2_MODULAR")
+    assert len(s2) == 8 and s2["return_mean"].iloc[-1] == pytest.approx(0.703125)
+
+
+def test_evals() -> None:
+    ev = loaders.load_evals(FIXTURE)
+    assert len(ev) == 16  # 4 trials x 4 training partners
+    row = ev[(ev["experiment"] == S2_MODULAR) & (ev["partner"] == "hand-train-0")].iloc[0]
+    assert row["mean_return"] == 0.79 and row["exact_return"] == pytest.approx(0.8608376383781433)
+    assert row["marginal_distance"] == pytest.approx(0.7836605310440063)
+    assert ev.loc[ev["label"] == "no_task_logits", "marginal_distance"].isna().all()  # BaselineModular has none
+
+
+def test_adaptation_points() -> None:
+    ad = loaders.load_adaptation(FIXTURE)
+    assert len(ad) == 15  # 3 files x 1 partner x 5 evaluation points
+    assert set(ad["population"]) == {"bandit-s2-hand"}
+    assert sorted(ad["label"].unique()) == ["agg", "modular-lam0.5", "scratch"]
+    assert sorted(ad["steps"].unique()) == [0, 16, 32, 48, 64]
+    scratch = ad[ad["label"] == "scratch"]
+    assert set(scratch["experiment"]) == {S2_MODULAR}  # scratch shares the modular run's seed
+    assert ad["trial"].str.startswith("EgoTrainable_").all()
+
+
+def test_zeroshot_and_marginals() -> None:
+    zs = loaders.load_zeroshot(FIXTURE)
+    assert len(zs) == 8 and set(zs["population"]) == {"bandit-s1-hand"}
+    assert sorted(zs["label"].unique()) == ["modular-lam0.5", "no_task_logits"]
+    mg = loaders.load_marginals(FIXTURE)
+    assert len(mg) == 3
+    d = mg.set_index(["population", "label"])["distance"]
+    assert d[("bandit-s2-hand", "agg")] == pytest.approx(0.36647313833236694)
+    assert d[("bandit-s1-hand", "modular-lam0.5")] == pytest.approx(0.9344931840896606)
+
+
+def test_selfplay_and_crossplay() -> None:
+    sp = loaders.load_selfplay_reports(FIXTURE)
+    assert len(sp) == 20 and sp["passed"].dtype == bool and sp["passed"].all()
+    assert sp.groupby("split").size().to_dict() == {"test": 10, "train": 10}
+    matrices = loaders.load_crossplay(FIXTURE)
+    assert list(matrices) == ["bandit-s2-hand__bandit-s2-hand"]
+    m = matrices["bandit-s2-hand__bandit-s2-hand"]
+    assert m.shape == (8, 8) and (np.diag(m.to_numpy()) == 1.0).all()
+
+
+def test_empty_root_gives_empty_frames_with_columns(tmp_path: Path) -> None:
+    assert loaders.load_training(tmp_path).empty
+    assert list(loaders.load_adaptation(tmp_path).columns) == loaders.ADAPT_COLUMNS
+    assert list(loaders.load_zeroshot(tmp_path).columns) == loaders.ZEROSHOT_COLUMNS
+    assert loaders.load_marginals(tmp_path).empty and loaders.load_evals(tmp_path).empty
+    assert loaders.load_selfplay_reports(tmp_path).empty and loaders.load_crossplay(tmp_path) == {}
+    assert loaders.load_stage_times(tmp_path).empty
+
+
+def test_user_study_csvs_concatenate(tmp_path: Path) -> None:
+    header = "pair,task,context,try,action_1,action_2\n"
+    (tmp_path / "s1.csv").write_text(header + "1,train,A,1,1,1\n1,train,B,1,3,4\n")
+    (tmp_path / "s2.csv").write_text(header + "1,train,A,1,2,1\n")  # pair 1 again: a different session
+    df = loaders.load_user_study_csvs(tmp_path)
+    assert len(df) == 3
+    assert sorted(df["pair_id"].unique()) == ["s1.csv:1", "s2.csv:1"]
+    assert df["coordinated"].tolist() == [1, 0, 0]
+    both = loaders.load_user_study_csvs([tmp_path / "s1.csv", tmp_path / "s2.csv"])
+    assert len(both) == 3
+    paper_table = loaders.load_user_study_csvs()
+    assert len(paper_table) == 276 and set(paper_table["source"]) == {"user_study.csv"}
+    (tmp_path / "bad.csv").write_text(header + "1,train,D,1,1,1\n")
+    with pytest.raises(ValueError, match="context"):
+        loaders.load_user_study_csvs(tmp_path)
+    with pytest.raises(FileNotFoundError):
+        loaders.load_user_study_csvs(tmp_path / "absent.csv")
+
+
+# --- summaries ----------------------------------------------------------------------------------
+
+
+def test_mean_ci_known_values() -> None:
+    # [1, 2, 3, 4]: mean 2.5, sample sd 1.2910, t(0.975, 3) = 3.182, half-width 3.182 * 1.2910 / 2 = 2.0540.
+    mean, lo, hi, n = mean_ci([1, 2, 3, 4])
+    assert (mean, n) == (2.5, 4)
+    assert lo == pytest.approx(0.4460, abs=1e-3) and hi == pytest.approx(4.5540, abs=1e-3)
+    mean, lo, hi, n = mean_ci([0.7, float("nan")])
+    assert (mean, n) == (0.7, 1) and math.isnan(lo) and math.isnan(hi)
+    assert mean_ci([])[3] == 0
+
+
+def test_t_quantiles() -> None:
+    assert t975(1) == 12.706 and t975(30) == 2.042
+    assert t975(40) == pytest.approx(2.021, abs=1e-3) and t975(120) == pytest.approx(1.980, abs=1e-3)
+    assert math.isnan(t975(0))
+
+
+def test_summarise_groups() -> None:
+    df = pd.DataFrame({"g": ["a", "a", "b"], "v": [1.0, 3.0, 5.0]})
+    s = summarise(df, ["g"], "v").set_index("g")
+    assert s.loc["a", "mean"] == 2.0 and s.loc["a", "n"] == 2 and math.isnan(s.loc["b", "lo"])
+
+
+def test_value_column_prefers_exact() -> None:
+    df = pd.DataFrame({"mean_return": [0.5, 0.6], "exact_return": [0.55, 0.65]})
+    assert value_column(df) == "exact_return"
+    assert value_column(df.assign(exact_return=[0.5, float("nan")])) == "mean_return"
+    assert value_column(df.drop(columns="exact_return")) == "mean_return"
+
+
+def test_adaptation_auc_on_fixture() -> None:
+    auc = adaptation_auc(loaders.load_adaptation(FIXTURE)).set_index("label")
+    # modular-lam0.5's exact returns at steps 0..64: 0.46471, 0.55093, 0.67293, 0.77318, 0.83657; mean 0.65966.
+    assert auc.loc["modular-lam0.5", "auc"] == pytest.approx(0.659664, abs=1e-6)
+    assert auc.loc["modular-lam0.5", "start"] == pytest.approx(0.4647056758403778)
+    assert auc.loc["modular-lam0.5", "end"] == pytest.approx(0.8365700840950012)
+    assert auc.loc["agg", "points"] == 5 and auc.loc["agg", "last_step"] == 64
+    assert (auc["value_source"] == "exact_return").all()
+    assert set(with_value(loaders.load_zeroshot(FIXTURE))["value_source"]) == {"exact_return"}
+
+
+def test_load_sweep_reads_an_experiment_folder(tmp_path) -> None:
+    runs = FIXTURE / "bandit" / "runs"
+    sweep = tmp_path / "my-sweep"
+    for i, trial in enumerate(sorted(runs.glob("bandit-s2-hand__*/EgoTrainable_*"))):
+        shutil.copytree(trial, sweep / f"EgoTrainable_{i}")
+    curves = loaders.load_sweep(sweep)
+    assert set(curves["population"]) == {"bandit-s2-hand"}  # from config.yaml, not the folder name
+    assert sorted(set(curves["method"])) == ["agg", "modular"]
+    assert curves.groupby("trial")["training_iteration"].apply(lambda s: s.is_monotonic_increasing and s.is_unique).all()
+    with pytest.raises(ValueError, match="holds no trained-ego trial"):
+        loaders.load_sweep(tmp_path / "empty")

@@ -1,0 +1,116 @@
+"""build_report on the fixture (and on small hand-made folders): the computed numbers and verdicts in report.md."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+from analysis.report import build_report
+
+FIXTURE = Path(__file__).parent / "fixtures" / "repro"
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.fixture(scope="module")
+def report(tmp_path_factory) -> Path:
+    return build_report(FIXTURE, tmp_path_factory.mktemp("report"))
+
+
+@pytest.fixture(scope="module")
+def text(report: Path) -> str:
+    return report.read_text()
+
+
+def test_report_and_every_linked_figure_exist(report: Path, text: str) -> None:
+    assert report.name == "report.md" and report.is_file()
+    links = re.findall(r"\]\((figures/[^)]+\.png)\)", text)
+    assert {Path(x).stem for x in links} >= {"adapt_armsexp", "zeroshot", "marginals", "userstudy", "training_bandit", "selfplay", "crossplay_bandit-s2-hand__bandit-s2-hand"}
+    for link in links:
+        png = report.parent / link
+        assert png.read_bytes()[:8] == PNG_MAGIC
+        assert png.with_suffix(".pdf").is_file()
+
+
+def test_zeroshot_numbers_and_flags(text: str) -> None:
+    # ours λ=0.5 on Arms 1: exact returns 0.27873, 0.30279, 0.29955, 0.30089 -> mean 0.29549,
+    # sd 0.01125, half-width 3.182 * 0.01125 / 2 = 0.01790 -> [0.2776, 0.3134]; the paper's 0.99 is outside.
+    assert "| Arms 1 | ours λ=0.5 | 0.99 | 0.295 [0.278, 0.313] (n=4) | **differs**: ours lower by 0.695 |" in text
+    # BaselineModular: 0.14514, 0.15091, 0.11426, 0.10625 -> 0.129 [0.094, 0.164]; the paper's 0.30 is outside.
+    assert "| Arms 1 | BaselineModular | 0.3 | 0.129 [0.094, 0.164] (n=4) | **differs**: ours lower by 0.171 |" in text
+    assert "| Arms 1 | supported | ours λ=0.5 0.295 vs BaselineModular 0.129 |" in text
+
+
+def test_adaptation_auc_row(text: str) -> None:
+    # Exact returns at steps 0, 16, 32, 48, 64: 0.4647, 0.5509, 0.6729, 0.7732, 0.8366 -> AUC 0.660.
+    assert "| Arms 2 | ours λ=0.5 | 5 | 64 | 0.465 (n=1, no interval) | 0.837 (n=1, no interval) | 0.660 (n=1, no interval) | exact |" in text
+    assert "| Arms 2 | contradicted | best regularised: ours λ=0.5 AUC 0.660; BaselineAgg 0.825; not above BaselineAgg |" in text
+
+
+def test_user_study_section(text: str) -> None:
+    assert "| Train-A | 22/23 = 0.957 ± 0.043 | 0.9545 ± 0.044 | 21/22 = 0.9545 ± 0.0444 | no | yes |" in text
+    assert "| Test-A | 21/23 = 0.913 ± 0.060 | 1 ± 0 | 22/22 = 1.0000 ± 0.0000 | no | yes |" in text
+    assert "Under it the table gives every bar and error bar of the paper's figure" in text
+    assert "user study: the numbers computed from the appendix table differ from the paper's figure" in text
+
+
+def test_differences_and_absences_are_explained(text: str) -> None:
+    summary = text.split("## Where ours differs from the paper, and why")[1].split("## Adapting")[0]
+    assert "quick plan" in summary
+    assert "the trained ego is under-trained: 0.861 of a possible 1" in summary  # eval.json mean over 4 partners
+    assert "blocks: no folder under the root" in summary and "hanabi: no folder under the root" in summary
+    assert "fig:armsexp: panel(s) Arms 3, Arms 4, Arms User Study absent" in summary
+
+
+def test_selfplay_and_crossplay_numbers(text: str) -> None:
+    assert "| bandit-s2-selfplay | train | 10 | 10 | 10 |" in text
+    # Each row of the 8 x 8 matrix holds 1.0, 0.88, 0.74, 0.62 twice: off-diagonal mean (6.48 - 1) / 7 = 0.783.
+    assert "self-play (diagonal) 1.000, cross-play (off-diagonal) 0.783" in text
+
+
+def write_zeroshot(root: Path) -> None:
+    """A bandit game folder holding only zero-shot results: 3 seeds x 4 test partners for two methods."""
+    game = root / "bandit"
+    (game / "zeroshot").mkdir(parents=True)
+    (game / "plan.json").write_text('{"game": "bandit", "seeds": [0, 1, 2], "quick": false}')
+    header = "run,method,lam,seed,partner,mean_return,stderr,exact_return"
+    modular, baseline = [header], [header]
+    for s in range(3):
+        for k in range(4):
+            v = 0.86 + 0.01 * k + 0.01 * s  # 0.86 .. 0.91, mean 0.885
+            modular.append(f"runs/bandit-s2-hand__modular-lam0.5/T{s},modular,0.5,{s},hand-test-{k},{v},0.01,{v}")
+            baseline.append(f"runs/bandit-s2-hand__no_task_logits/T{s},no_task_logits,0.0,{s},hand-test-{k},0.2,0.01,0.2")
+    (game / "zeroshot" / "bandit-s2-hand__modular-lam0.5.csv").write_text("\n".join(modular) + "\n")
+    (game / "zeroshot" / "bandit-s2-hand__no_task_logits.csv").write_text("\n".join(baseline) + "\n")
+
+
+def test_paper_inside_and_outside_our_interval(tmp_path: Path) -> None:
+    write_zeroshot(tmp_path / "repro")
+    text = build_report(tmp_path / "repro", tmp_path / "out").read_text()
+    # 12 values 0.86..0.91 (mean 0.885, sd 0.01446, half-width 2.201 * 0.01446 / sqrt(12) = 0.00919): 0.89 is inside.
+    assert "| Arms 2 | ours λ=0.5 | 0.89 | 0.885 [0.876, 0.894] (n=12) | paper inside our 95% CI |" in text
+    # All twelve 0.2: a zero-width interval, and the paper's 0.55 outside it with no cause visible in the data.
+    assert "| Arms 2 | BaselineModular | 0.55 | 0.200 [0.200, 0.200] (n=12) | **differs**: ours lower by 0.350 |" in text
+    assert "no cause visible in the data" in text
+    assert "stage(s) not finished: selfplay, train, adapt, zeroshot, marginals" in text
+    assert "No adaptation curves" in text and "No marginals.csv found." in text
+
+
+def test_empty_root_and_recorded_sessions(tmp_path: Path) -> None:
+    sessions = tmp_path / "sessions"
+    sessions.mkdir()
+    (sessions / "s1.csv").write_text("pair,task,context,try,action_1,action_2\n1,test,C,1,2,2\n2,test,C,1,4,2\n")
+    (tmp_path / "nothing").mkdir()
+    text = build_report(tmp_path / "nothing", tmp_path / "out", user_study=[sessions]).read_text()
+    assert "No game folder" in text
+    assert "## User study (fig:userstudy)" in text
+    assert "### Recorded sessions (2 pairs in 1 file(s))" in text
+    assert "| Test-C | 1/2 = 0.500 ± 0.500 | 2 |" in text  # pair 1 scores (2/2), pair 2 does not (4/2)
+    assert (tmp_path / "out" / "figures" / "userstudy_live.png").is_file()
+
+
+def test_a_missing_root_is_an_error_and_writes_nothing(tmp_path: Path) -> None:
+    with pytest.raises(ValueError, match="is not a folder"):
+        build_report(tmp_path / "missing")
+    assert not (tmp_path / "missing").exists()

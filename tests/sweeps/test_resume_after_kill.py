@@ -1,0 +1,120 @@
+"""A sweep killed with SIGKILL mid-way resumes: every trial finishes, no iteration repeats or is
+missing, and the results equal those of an uninterrupted run with the same seeds."""
+
+from __future__ import annotations
+
+import json
+import os
+import pickle
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import pandas as pd
+import torch
+import yaml
+
+from rllib_conv.pipelines.checkpoints import RL_MODULE_DIR, checkpoints, last_checkpoint
+
+SWEEP = {
+    "name": "sweep",
+    "population": "bandit-s1-hand",
+    "lam": {"grid_search": [0.0, 0.5]},
+    "model": {"hidden": 8},
+    "ppo": {"rollout_per_partner": 16, "num_epochs": 2},
+    "run": {"timesteps": 2560, "checkpoint_every": 3, "keep_checkpoints": 2},
+}
+ITERATIONS = 2560 // 64
+
+
+def _ray_tmp() -> str:
+    # Short: Ray's unix socket paths live under it and have a length limit.
+    return tempfile.mkdtemp(prefix="rt", dir="/tmp")
+
+
+def _kill_ray_instance(ray_tmp: str) -> None:
+    """SIGKILL every process of the Ray instance rooted at `ray_tmp` (and nothing else)."""
+    for pid in os.listdir("/proc"):
+        if not pid.isdigit():
+            continue
+        try:
+            cmd = Path(f"/proc/{pid}/cmdline").read_bytes()
+            env = Path(f"/proc/{pid}/environ").read_bytes()
+        except OSError:
+            continue
+        if ray_tmp.encode() in cmd or f"RAY_TMPDIR={ray_tmp}".encode() in env:
+            try:
+                os.kill(int(pid), signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+
+
+def _sweep(config: Path, storage: Path, ray_tmp: str, *extra: str) -> subprocess.Popen:
+    env = {**os.environ, "RAY_TMPDIR": ray_tmp, "OMP_NUM_THREADS": "1", "RAY_ADDRESS": ""}
+    cmd = [sys.executable, "-m", "rllib_conv.cli", "sweep", str(config), "--storage", str(storage), *extra]
+    return subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, start_new_session=True)
+
+
+def _iterations(storage: Path) -> list[int]:
+    done = []
+    for progress in storage.glob("sweep/*/progress.csv"):
+        try:
+            done.append(int(pd.read_csv(progress)["training_iteration"].max()))
+        except (pd.errors.EmptyDataError, KeyError, ValueError):
+            done.append(0)
+    return done
+
+
+def _outcome(storage: Path) -> dict[float, dict]:
+    """Per lam: the final evaluation and the final task-module weights."""
+    out = {}
+    for trial in sorted(p.parent for p in storage.glob("sweep/*/config.yaml")):
+        lam = yaml.safe_load((trial / "config.yaml").read_text())["lam"]
+        weights = pickle.loads((last_checkpoint(trial) / RL_MODULE_DIR / "task" / "module_state.pkl").read_bytes())
+        out[lam] = {"eval": json.loads((trial / "eval.json").read_text()), "weights": weights, "trial": trial}
+    return out
+
+
+def test_sigkill_then_resume_matches_an_uninterrupted_sweep(tmp_path) -> None:
+    config = tmp_path / "sweep.yaml"
+    config.write_text(yaml.safe_dump(SWEEP))
+
+    reference, ray_a = tmp_path / "reference", _ray_tmp()
+    proc = _sweep(config, reference, ray_a)
+    out, _ = proc.communicate(timeout=600)
+    _kill_ray_instance(ray_a)
+    assert proc.returncode == 0, out.decode()[-3000:]
+
+    interrupted, ray_b = tmp_path / "interrupted", _ray_tmp()
+    proc = _sweep(config, interrupted, ray_b)
+    deadline = time.time() + 300
+    while time.time() < deadline and not any(i >= ITERATIONS // 2 for i in _iterations(interrupted)):
+        time.sleep(0.2)
+    assert any(0 < i < ITERATIONS for i in _iterations(interrupted)), "the sweep should be killed mid-way"
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+    _kill_ray_instance(ray_b)
+    killed_at = _iterations(interrupted)
+
+    ray_c = _ray_tmp()
+    proc = _sweep(config, interrupted, ray_c, "--resume")
+    out, _ = proc.communicate(timeout=600)
+    _kill_ray_instance(ray_c)
+    assert proc.returncode == 0, out.decode()[-3000:]
+    assert "--- 2/2 trials finished ---" in out.decode()  # the live table's last print
+
+    resumed, expected = _outcome(interrupted), _outcome(reference)
+    assert sorted(resumed) == sorted(expected) == [0.0, 0.5]
+    for lam in expected:
+        assert len(checkpoints(resumed[lam]["trial"])) <= SWEEP["run"]["keep_checkpoints"]  # old ones pruned
+        progress = pd.read_csv(resumed[lam]["trial"] / "progress.csv")
+        assert progress["training_iteration"].tolist() == list(range(1, ITERATIONS + 1)), (lam, killed_at)
+        assert resumed[lam]["eval"].keys() == expected[lam]["eval"].keys()
+        for key, value in expected[lam]["eval"].items():
+            if key not in ("wall_s", "setup_s"):  # timings
+                assert resumed[lam]["eval"][key] == value, (lam, key)
+        for name, tensor in expected[lam]["weights"].items():
+            assert torch.equal(torch.as_tensor(resumed[lam]["weights"][name]), torch.as_tensor(tensor)), (lam, name)
