@@ -11,15 +11,20 @@ export OMP_NUM_THREADS ?= 1
 export CMAKE_POLICY_VERSION_MINIMUM := 3.5
 export PIP_DISABLE_PIP_VERSION_CHECK := 1
 
-.PHONY: demo test venv bench clean
+.PHONY: demo test venv bench clean chromium
 
 demo: $(STAMP)
 	$(BIN)/rllib-conv demo
 
-test: $(STAMP)
+test: $(STAMP) chromium
 	$(BIN)/python -m pytest -q
 
 venv: $(STAMP)
+
+# The browser tests (tests/play) drive Debian's chromium headless; Playwright's own browser
+# download needs the internet, Debian's package does not. Idempotent: skipped when installed.
+chromium:
+	command -v chromium >/dev/null || (apt-get update && DEBIAN_FRONTEND=noninteractive apt-get install -y chromium)
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/env_throughput.py

@@ -135,6 +135,31 @@ def plan_for(game: str, seeds: int = 3, quick: bool = False) -> Plan:
     return Plan(game=game, seeds=seed_list, populations={}, selfplay=[{"name": "hanabi-selfplay"}], selfplay_methods=HANABI_METHODS, adapt_partners=4)
 
 
+def narrow(plan: Plan, populations: list[str] | None = None, methods: list[str] | None = None) -> Plan:
+    """Keep only the named populations (built-in, self-play or zero-shot ones) and method labels of `plan`.
+
+    `modular-lam0.5` is always kept: learning from scratch and zero-shot start from its runs.
+    ValueError naming the unknown ones and the choices.
+    """
+    if populations:
+        known = [*plan.populations, *(sp["name"] for sp in plan.selfplay), *plan.zeroshot_populations]
+        unknown = sorted(set(populations) - set(known))
+        if unknown:
+            raise ValueError(f"--populations: {unknown} not in the {plan.game} plan; choose from {sorted(set(known))}")
+        plan.populations = {k: v for k, v in plan.populations.items() if k in populations}
+        plan.selfplay = [sp for sp in plan.selfplay if sp["name"] in populations]
+        plan.zeroshot_populations = [p for p in plan.zeroshot_populations if p in populations]
+    if methods:
+        known = {m.label for ms in [*plan.populations.values(), plan.selfplay_methods] for m in ms}
+        unknown = sorted(set(methods) - known)
+        if unknown:
+            raise ValueError(f"--methods: {unknown} not in the {plan.game} plan; choose from {sorted(known)}")
+        keep = set(methods) | {MODULAR_05.label}
+        plan.populations = {k: [m for m in v if m.label in keep] for k, v in plan.populations.items()}
+        plan.selfplay_methods = [m for m in plan.selfplay_methods if m.label in keep]
+    return plan
+
+
 def _merge(base: dict[str, Any], extra: dict[str, Any]) -> dict[str, Any]:
     out = dict(base)
     for k, v in extra.items():
@@ -242,12 +267,23 @@ class Reproduction:
         return times
 
 
-def reproduce(game: str, out: str | Path = "reproduce", seeds: int = 3, quick: bool = False, address: str | None = None) -> dict[str, dict[str, float]]:
-    """Run `game` (or `all`), then build `<out>/report/report.md` over every game under `out`; return the stage wall times per game."""
+def reproduce(
+    game: str,
+    out: str | Path = "reproduce",
+    seeds: int = 3,
+    quick: bool = False,
+    address: str | None = None,
+    populations: list[str] | None = None,
+    methods: list[str] | None = None,
+) -> dict[str, dict[str, float]]:
+    """Run `game` (or `all`), optionally `narrow`ed, then build `<out>/report/report.md` over every game under `out`.
+
+    Returns the stage wall times per game.
+    """
     from analysis.report import build_report
 
     games = GAMES if game == "all" else (game,)
-    plans = [plan_for(g, seeds, quick) for g in games]  # validate every game before running any
+    plans = [narrow(plan_for(g, seeds, quick), populations, methods) for g in games]  # validate every game before running any
     times = {p.game: Reproduction(p, Path(out) / p.game, address).run() for p in plans}
     print(f"report: {build_report(out)}")
     return times
