@@ -51,7 +51,7 @@ class ProgressLine(Callback):
 
 
 class ProgressTable(Callback):
-    """Print a table of every trial (its swept values, iteration, steps, return, status) as the sweep runs.
+    """Print a table of every trial (its swept values, status, iteration, steps, return) as the sweep runs.
 
     Reprinted at most every `every` seconds while results arrive, whenever a trial
     finishes or fails, and once at the end.
@@ -69,7 +69,9 @@ class ProgressTable(Callback):
         for trial in trials:
             cfg, result = trial.config or {}, trial.last_result or {}
             row = {"trial": trial.trial_id, "status": trial.status}
-            row.update({k: cfg.get(k) for k in ("population", "method", "lam", "seed") if k in cfg})
+            # The swept values (grid keys, nested ones as "model/z_dim"), else the usual identifiers.
+            swept = getattr(trial, "evaluated_params", None) or {k: cfg.get(k) for k in ("population", "method", "lam", "seed") if k in cfg}
+            row.update({k: v for k, v in swept.items() if k != "config"})
             row["iter"] = result.get("training_iteration", 0)
             for key, label in self.METRICS:
                 value = result.get(key)

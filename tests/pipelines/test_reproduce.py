@@ -1,0 +1,47 @@
+"""`rllib-conv reproduce`: plans, narrowing them, and a small end-to-end run that builds the report."""
+
+from __future__ import annotations
+
+import pandas as pd
+import pytest
+
+from rllib_conv.cli import main
+from rllib_conv.pipelines.reproduce import narrow, plan_for
+
+
+def test_narrow_keeps_the_named_populations_and_methods() -> None:
+    plan = narrow(plan_for("bandit"), ["bandit-s2-hand", "bandit-s1-hand", "bandit-s3-selfplay"], ["agg"])
+    assert list(plan.populations) == ["bandit-s2-hand"]
+    assert [m.label for m in plan.populations["bandit-s2-hand"]] == ["modular-lam0.5", "agg"]  # modular-lam0.5 always kept
+    assert [sp["name"] for sp in plan.selfplay] == ["bandit-s3-selfplay"]
+    assert plan.zeroshot_populations == ["bandit-s1-hand", "bandit-s2-hand"]  # s3 not named: dropped
+    assert [m.label for m in plan.selfplay_methods] == ["modular-lam0.5", "agg"]
+
+
+@pytest.mark.parametrize(
+    ("populations", "methods", "match"),
+    [
+        (["bandit-s9-hand"], None, r"--populations: \['bandit-s9-hand'\] not in the bandit plan; choose from"),
+        (None, ["reptile"], r"--methods: \['reptile'\] not in the bandit plan"),
+    ],
+)
+def test_narrow_rejects_unknown_names(populations, methods, match) -> None:
+    with pytest.raises(ValueError, match=match):
+        narrow(plan_for("bandit"), populations, methods)
+
+
+def test_quick_reproduction_runs_every_stage_and_builds_the_report(ray_session, tmp_path, capsys) -> None:
+    out = tmp_path / "repro"
+    args = ["reproduce", "bandit", "--quick", "--populations", "bandit-s2-hand", "--out", str(out)]
+    assert main(args) == 0
+    game = out / "bandit"
+    assert sorted(p.stem for p in game.glob("*.done")) == ["adapt", "marginals", "selfplay", "train"]
+    curves = pd.read_csv(game / "adaptation" / "bandit-s2-hand__modular-lam0.5.csv")
+    assert curves["steps"].min() == 0 and curves["steps"].max() >= 64
+    assert set(pd.read_csv(game / "marginals.csv")["method"]) == {"modular", "agg"}
+    report = (out / "report" / "report.md").read_text()
+    assert "Arms 2" in report and (out / "report" / "figures" / "adapt_armsexp.png").stat().st_size > 0
+
+    capsys.readouterr()
+    assert main(args) == 0  # again: every stage is skipped, the report rebuilt
+    assert "train: done before, skipped" in capsys.readouterr().out
