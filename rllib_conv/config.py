@@ -29,7 +29,7 @@ from pydantic import (
     model_validator,
 )
 
-from rllib_conv.envs import names as env_names
+from rllib_conv.envs.registry import factory as env_factory
 
 Method = Literal["modular", "agg", "no_task_logits", "oracle", "maml"]
 # Methods whose ego is one network for all partners (task module + a single head).
@@ -53,8 +53,7 @@ def _folder_name(v: str) -> str:
 
 
 def _registered_env(v: str) -> str:
-    if v not in env_names():
-        raise ValueError(f"unknown env {v!r}; registered: {', '.join(env_names())}")
+    env_factory(v)  # ValueError naming the registered envs
     return v
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib
 import inspect
 from typing import Any, Callable
 
@@ -33,11 +34,23 @@ def names() -> list[str]:
 
 
 def factory(name: str) -> EnvFactory:
-    """Return the factory registered as `name`; ValueError (listing the known names) if none."""
-    try:
+    """Return the factory registered as `name`; ValueError (listing the known names) if none.
+
+    A name `"package.module:callable"` is imported (and registered) on first use. Unlike
+    `register`, which holds only in the calling process, such a name works in every Ray
+    worker too (Tune trials, env runners), as long as the module is importable there.
+    """
+    if name in _FACTORIES:
         return _FACTORIES[name]
-    except KeyError:
-        raise ValueError(f"unknown env {name!r}; registered envs: {', '.join(names())}") from None
+    if isinstance(name, str) and ":" in name:
+        module, _, attr = name.partition(":")
+        try:
+            build = getattr(importlib.import_module(module), attr)
+        except (ImportError, AttributeError, ValueError) as exc:
+            raise ValueError(f"env {name!r}: cannot import {attr!r} from module {module!r} ({exc})") from None
+        register(name, build)
+        return build
+    raise ValueError(f"unknown env {name!r}; registered envs: {', '.join(names())} (or give 'package.module:callable')")
 
 
 def make(name: str, **config: Any) -> AECEnv | ParallelEnv:

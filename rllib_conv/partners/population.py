@@ -26,7 +26,7 @@ from typing import Any, Callable, Literal
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from rllib_conv.envs import names as env_names
+from rllib_conv.envs.registry import factory as env_factory
 from rllib_conv.partners.base import Partner
 from rllib_conv.partners.kinds import partner_from_spec
 
@@ -87,8 +87,10 @@ class Population(BaseModel):
 
     def validate_partners(self) -> None:
         """Raise ValueError unless the env is registered, names are unique and every partner builds."""
-        if self.env not in env_names():
-            raise ValueError(f"population {self.name!r}: unknown env {self.env!r}; registered: {', '.join(env_names())}")
+        try:
+            env_factory(self.env)
+        except ValueError as exc:
+            raise ValueError(f"population {self.name!r}: {exc}") from None
         seen: set[str] = set()
         for e in self.partners:
             if e.name in seen:

@@ -1,0 +1,32 @@
+"""Games named by import path ("package.module:callable") work in every process, Tune trials included."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from rllib_conv import envs, partners
+from rllib_conv.pipelines.train import run
+
+PATH = "rllib_conv.envs.bandit:CollaborativeBanditEnv"
+
+
+def test_an_import_path_names_a_game() -> None:
+    env = envs.make(PATH, symmetric=1)
+    assert type(env).__name__ == "CollaborativeBanditEnv" and env.num_contexts == 4
+    with pytest.raises(ValueError, match=r"cannot import 'Nope' from module 'rllib_conv.envs.bandit'"):
+        envs.make("rllib_conv.envs.bandit:Nope")
+    with pytest.raises(ValueError, match=r"cannot import 'X' from module 'no_such_module'"):
+        envs.make("no_such_module:X")
+
+
+def test_a_population_of_an_import_path_game_trains_through_tune(ray_session, tmp_path) -> None:
+    # The Tune trial runs in another process, where nothing was `register`ed: the name alone must do.
+    pop = partners.get("bandit-s1-hand").model_copy(update={"name": "by-path", "env": PATH})
+    pop.save(tmp_path / "pop.json")
+    raw = {"name": "path", "population": str(tmp_path / "pop.json"), "model": {"hidden": 8}, "ppo": {"rollout_per_partner": 16}, "run": {"timesteps": 128}}
+    results = run(raw, storage=tmp_path / "runs")
+    assert not results.errors
+    evaluation = json.loads((tmp_path / "runs" / "path").glob("*/eval.json").__next__().read_text())
+    assert 0.0 <= evaluation["eval/exact/hand-train-0"] <= 1.0
