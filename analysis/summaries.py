@@ -109,6 +109,21 @@ def adaptation_auc(curves: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=columns)
 
 
+def bayes_optimal_return(num_contexts: int, symmetric: int, episodes: int) -> float:
+    """Expected return, after `episodes` one-step episodes with a new bandit partner, of the Bayes-optimal adapter.
+
+    It knows the true marginals, so it plays the one good arm of a rule context (return 1)
+    and, on a symmetric context (two good arms) not yet seen, one of the two at random
+    (return 1/2); having seen the context once it knows the partner's arm (a hit confirms it,
+    a miss rules it out) and plays it. Contexts are uniform, so a given one is still unseen
+    with probability (1 - 1/C)^t, and the return is (C - m)/C + m/C * (1 - (1 - 1/C)^t / 2).
+    """
+    if not 0 <= symmetric <= num_contexts or num_contexts < 1 or episodes < 0:
+        raise ValueError(f"need 0 <= symmetric <= num_contexts, num_contexts >= 1, episodes >= 0; got {symmetric}, {num_contexts}, {episodes}")
+    unseen = (1.0 - 1.0 / num_contexts) ** episodes
+    return (num_contexts - symmetric) / num_contexts + symmetric / num_contexts * (1.0 - unseen / 2.0)
+
+
 def curve_band(curves: pd.DataFrame) -> pd.DataFrame:
     """Per (game, population, label, steps): mean return over curves with its 95% interval (the bands of the adaptation figures)."""
     if curves.empty:

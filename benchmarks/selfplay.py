@@ -6,7 +6,7 @@ For each game, in one run:
 - `rllib_default`: `PPOConfig()` defaults with RLlib's action-masking module per seat (shared
   for Hanabi), trained for `--default-seconds`; its steps/s, and its greedy self-play score
   at the end (1000 episodes) against the same gate.
-Writes `benchmarks/results/selfplay.json`.
+Writes `benchmarks/results/selfplay_<games>.json`.
 
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/selfplay.py --games bandit blocks hanabi
 """
@@ -127,7 +127,8 @@ def main() -> None:
         )
         print(table.to_string(index=False, float_format="{:.2f}".format), flush=True)
     ray.shutdown()
-    path = write_result("selfplay", {"rows": rows, "pairs": args.pairs, "default_seconds": args.default_seconds})
+    # One file per set of games, so a run on some games keeps the results of the others.
+    path = write_result("selfplay_" + "_".join(args.games), {"rows": rows, "pairs": args.pairs, "default_seconds": args.default_seconds})
     print(f"wrote {path}")
 
 

@@ -212,3 +212,15 @@ def test_load_sweep_reads_an_experiment_folder(tmp_path) -> None:
     assert curves.groupby("trial")["training_iteration"].apply(lambda s: s.is_monotonic_increasing and s.is_unique).all()
     with pytest.raises(ValueError, match="holds no trained-ego trial"):
         loaders.load_sweep(tmp_path / "empty")
+
+
+def test_bayes_optimal_adapter_known_answers() -> None:
+    from analysis.summaries import bayes_optimal_return
+
+    # 4 contexts, 2 symmetric: before any episode 2/4 * 1 + 2/4 * 1/2 = 0.75.
+    assert bayes_optimal_return(4, 2, 0) == pytest.approx(0.75)
+    # after 1 episode each symmetric context is unseen with prob 3/4: 0.5 + 0.5 * (1 - 3/8) = 0.8125.
+    assert bayes_optimal_return(4, 2, 1) == pytest.approx(0.8125)
+    assert bayes_optimal_return(4, 0, 0) == 1.0 and bayes_optimal_return(4, 4, 10_000) == pytest.approx(1.0)
+    with pytest.raises(ValueError, match="symmetric"):
+        bayes_optimal_return(4, 5, 0)

@@ -1,0 +1,93 @@
+"""The paper's headline numbers from a `rllib-conv reproduce` folder, with 95% intervals, as one table and JSON.
+
+Reads only files (through `analysis.loaders`): per population and method the adaptation
+AUC (mean return over the evaluation points, per (seed, test partner) curve), on the bandit
+beside the Bayes-optimal adapter's AUC at the same points (`analysis.summaries.
+bayes_optimal_return`); the zero-shot return per method; the marginal distance per method.
+Writes `benchmarks/results/reproduce_<name>.json` with the reproduce command recorded in
+the folder's plan.json.
+
+    .venv/bin/python benchmarks/reproduce_summary.py ROOT/bandit --name bandit_core
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+import sys
+from pathlib import Path
+
+import pandas as pd
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import write_result  # noqa: E402
+
+from analysis import loaders  # noqa: E402
+from analysis.summaries import adaptation_auc, bayes_optimal_return, mean_ci  # noqa: E402
+
+BANDIT_CONTEXTS = 4
+
+
+def _ci(values: pd.Series) -> dict:
+    mean, lo, hi, n = mean_ci(values)
+    return {"mean": mean, "lo": lo, "hi": hi, "n": n}
+
+
+def _bayes_auc(population: str, steps: list[int]) -> float | None:
+    match = re.match(r"bandit-s(\d)-", population)
+    if not match or not steps:
+        return None
+    return sum(bayes_optimal_return(BANDIT_CONTEXTS, int(match.group(1)), t) for t in steps) / len(steps)
+
+
+def summary(root: Path) -> dict:
+    """Adaptation AUC (with the Bayes-optimal gap), zero-shot and marginals per population and method."""
+    out: dict = {"adaptation": [], "zeroshot": [], "marginals": []}
+    curves = loaders.load_adaptation(root)
+    if not curves.empty:
+        aucs = adaptation_auc(curves)
+        for (population, label), group in aucs.groupby(["population", "label"]):
+            row = {"population": population, "method": label, "auc": _ci(group["auc"]), "start": _ci(group["start"]), "end": _ci(group["end"])}
+            steps = sorted(curves.loc[(curves["population"] == population) & (curves["label"] == label), "steps"].unique().tolist())
+            bayes = _bayes_auc(population, steps)
+            if bayes is not None:
+                row["bayes_optimal_auc"] = bayes
+                row["gap_to_bayes_optimal"] = bayes - row["auc"]["mean"]
+            out["adaptation"].append(row)
+    zeroshot = loaders.load_zeroshot(root)
+    if not zeroshot.empty:
+        value = "exact_return" if zeroshot["exact_return"].notna().all() else "mean_return"
+        for (population, label), group in zeroshot.groupby(["population", "label"]):
+            out["zeroshot"].append({"population": population, "method": label, "return": _ci(group[value])})
+    marginals = loaders.load_marginals(root)
+    if not marginals.empty:
+        for (population, method, lam), group in marginals.groupby(["population", "method", "lam"]):
+            out["marginals"].append({"population": population, "method": method, "lam": lam, "distance": _ci(group["distance"])})
+    return out
+
+
+def _fmt(ci: dict) -> str:
+    return f"{ci['mean']:.3f} [{ci['lo']:.3f}, {ci['hi']:.3f}] n={ci['n']}"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("root", type=Path, help="a reproduce game folder (e.g. reproduce/bandit)")
+    parser.add_argument("--name", required=True, help="results file name: benchmarks/results/reproduce_<name>.json")
+    args = parser.parse_args()
+    if not args.root.is_dir():
+        parser.error(f"root {str(args.root)!r} is not a folder")
+    data = summary(args.root)
+    for section, rows in data.items():
+        print(f"\n{section}")
+        for row in rows:
+            cells = [f"{k} {_fmt(v)}" if isinstance(v, dict) else f"{k} {v:.3f}" if isinstance(v, float) else f"{k} {v}" for k, v in row.items()]
+            print("  " + " | ".join(cells))
+    stages = loaders.load_stage_times(args.root).to_dict(orient="records")
+    plan = loaders.read_plan(args.root)
+    path = write_result(f"reproduce_{args.name}", {"root": str(args.root), "plan": plan, "stages": stages, **data})
+    print(f"\nwrote {path}")
+
+
+if __name__ == "__main__":
+    main()
