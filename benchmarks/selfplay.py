@@ -126,10 +126,11 @@ def main() -> None:
             ]
         )
         print(table.to_string(index=False, float_format="{:.2f}".format), flush=True)
+        # After every game, so an interrupted run keeps the games it finished; one file per
+        # set of games, so a run on some games keeps the results of the others.
+        path = write_result("selfplay_" + "_".join(args.games), {"rows": rows, "pairs": args.pairs, "default_seconds": args.default_seconds})
+        print(f"wrote {path}")
     ray.shutdown()
-    # One file per set of games, so a run on some games keeps the results of the others.
-    path = write_result("selfplay_" + "_".join(args.games), {"rows": rows, "pairs": args.pairs, "default_seconds": args.default_seconds})
-    print(f"wrote {path}")
 
 
 if __name__ == "__main__":
