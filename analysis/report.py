@@ -83,6 +83,13 @@ class Comparison:
     n: int
     digits: int = 3
     reasons: list[str] = field(default_factory=list)
+    higher_is_better: bool = True  # returns; False for distances
+
+    @property
+    def direction(self) -> str:
+        """Whether ours is better or worse than the paper's number (by the mean)."""
+        better = self.mean > self.paper_value if self.higher_is_better else self.mean < self.paper_value
+        return "ours is better" if better else "ours is worse"
 
     @property
     def status(self) -> str:
@@ -458,7 +465,9 @@ def _marginals_section(ctx: Context) -> str:
             continue
         # With two candidate baseline bars, compare with the nearer one (the assignment is unknown).
         series, pn = min(paper_vals.items(), key=lambda kv: abs(kv[1].value - r.mean))
-        c = Comparison("marginals", f"{population_name(r.population)}, {label_name(r.label)}", pn.value, f"{pn.source} ({series}: {pn.note})", r.mean, r.lo, r.hi, r.n)
+        c = Comparison(
+            "marginals", f"{population_name(r.population)}, {label_name(r.label)}", pn.value, f"{pn.source} ({series}: {pn.note})", r.mean, r.lo, r.hi, r.n, higher_is_better=False
+        )
         if c.differs:
             c.reasons = ctx.reasons(r.game, r.population, r.label, r.n)
             if series in ("L3", "L5", "L6"):
@@ -632,7 +641,10 @@ def _differences_section(ctx: Context) -> str:
         lines += ["", "### Numbers that differ", ""]
         for c in differ:
             why = "; ".join(c.reasons) if c.reasons else "no cause visible in the data (the run looks converged and has an interval)"
-            lines.append(f"- **{c.section}: {c.what}**: paper {c.paper_value:g} ({c.paper_source}); ours {fmt_ci(c.mean, c.lo, c.hi, c.n, c.digits)}. Why: {why}.")
+            lines.append(
+                f"- **{c.section}: {c.what}**: paper {c.paper_value:g} ({c.paper_source}); ours {fmt_ci(c.mean, c.lo, c.hi, c.n, c.digits)}, "
+                f"{c.direction}. Why: {why}."
+            )
     contradicted = [c for c in ctx.claims if c.verdict == "contradicted"]
     if contradicted:
         lines += ["", "### Claims our data contradict", ""]

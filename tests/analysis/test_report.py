@@ -58,6 +58,7 @@ def test_user_study_section(text: str) -> None:
 def test_differences_and_absences_are_explained(text: str) -> None:
     summary = text.split("## Where ours differs from the paper, and why")[1].split("## Adapting")[0]
     assert "quick plan" in summary
+    assert "ours 0.295 [0.278, 0.313] (n=4), ours is worse." in summary  # zero-shot Arms 1 vs the paper's 0.99
     assert "the trained ego is under-trained: 0.861 of a possible 1" in summary  # eval.json mean over 4 partners
     assert "blocks: no folder under the root" in summary and "hanabi: no folder under the root" in summary
     assert "fig:armsexp: panel(s) Arms 3, Arms 4, Arms User Study absent" in summary
@@ -92,7 +93,7 @@ def test_paper_inside_and_outside_our_interval(tmp_path: Path) -> None:
     assert "| Arms 2 | ours λ=0.5 | 0.89 | 0.885 [0.876, 0.894] (n=12) | paper inside our 95% CI |" in text
     # All twelve 0.2: a zero-width interval, and the paper's 0.55 outside it with no cause visible in the data.
     assert "| Arms 2 | BaselineModular | 0.55 | 0.200 [0.200, 0.200] (n=12) | **differs**: ours lower by 0.350 |" in text
-    assert "no cause visible in the data" in text
+    assert "(n=12), ours is worse. Why: no cause visible in the data" in text
     assert "stage(s) not finished: selfplay, train, adapt, zeroshot, marginals" in text
     assert "No adaptation curves" in text and "No marginals.csv found." in text
 
@@ -114,3 +115,13 @@ def test_a_missing_root_is_an_error_and_writes_nothing(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="is not a folder"):
         build_report(tmp_path / "missing")
     assert not (tmp_path / "missing").exists()
+
+
+def test_direction_knows_that_smaller_distances_are_better() -> None:
+    from analysis.report import Comparison
+
+    distance = Comparison("marginals", "Arms 2, ours", 0.02, "src", 0.003, 0.001, 0.005, 3, higher_is_better=False)
+    ret = Comparison("zero-shot", "Arms 2, ours", 0.89, "src", 0.996, 0.995, 0.998, 12)
+    assert distance.differs and distance.direction == "ours is better"
+    assert ret.direction == "ours is better"
+    assert Comparison("zero-shot", "x", 0.55, "src", 0.465, 0.423, 0.508, 12).direction == "ours is worse"
