@@ -16,7 +16,7 @@ from __future__ import annotations
 import datetime as _dt
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterable, Sequence
+from typing import Any, Iterable, Sequence
 
 import numpy as np
 import pandas as pd
@@ -375,13 +375,20 @@ def _adaptation_section(ctx: Context) -> str:
 
     checks = _adaptation_claims(ctx, auc)
     ctx.claims += checks
-    if checks:
-        lines += ["", "### The paper's claims on adaptation, checked", ""]
-        for claim in paper.ADAPTATION_CLAIMS:
-            mine = [c for c in checks if c.claim.key == claim.key]
-            if mine:
-                lines += [f"*{claim.text}* ({claim.source})", "", md_table(["scope", "verdict", "evidence"], [c.row() for c in mine]), ""]
+    lines += _claims_block("adaptation", paper.ADAPTATION_CLAIMS, checks)
     return "\n".join(lines)
+
+
+def _claims_block(topic: str, claims: Iterable[Any], checks: list[ClaimCheck]) -> list[str]:
+    """Markdown lines: each of the paper's `claims` on `topic` with the table of its `checks` (none if unchecked)."""
+    if not checks:
+        return []
+    lines = ["", f"### The paper's claims on {topic}, checked", ""]
+    for claim in claims:
+        mine = [c for c in checks if c.claim.key == claim.key]
+        if mine:
+            lines += [f"*{claim.text}* ({claim.source})", "", md_table(["scope", "verdict", "evidence"], [c.row() for c in mine]), ""]
+    return lines
 
 
 def _zeroshot_section(ctx: Context) -> str:
@@ -501,12 +508,7 @@ def _marginals_section(ctx: Context) -> str:
             verdict = "supported" if all(o == "clear" for o in outcomes) else "supported (intervals overlap)" if all(o != "no" for o in outcomes) else "contradicted"
             checks.append(ClaimCheck(claims["lam0-below-baselines"], scope, verdict, f"λ=0.0 {a[0]:.3f}; " + ", ".join(f"{label_name(b)} {s.at[b, 'mean']:.3f}" for b in base), game))
     ctx.claims += checks
-    if checks:
-        lines += ["", "### The paper's claims on the marginals, checked", ""]
-        for claim in paper.MARGINAL_CLAIMS:
-            mine = [c for c in checks if c.claim.key == claim.key]
-            if mine:
-                lines += [f"*{claim.text}* ({claim.source})", "", md_table(["scope", "verdict", "evidence"], [c.row() for c in mine]), ""]
+    lines += _claims_block("the marginals", paper.MARGINAL_CLAIMS, checks)
     return "\n".join(lines)
 
 

@@ -144,20 +144,9 @@ def user_study_scores(study: pd.DataFrame, exclude_pairs: Iterable[int] = (), dd
     the table; `paper_figure_recipe` gives the options that reproduce the paper's figure.
     Rows come ordered train A, B, C then test A, B, C.
     """
-    from rllib_conv.partners.user_study import CONTEXTS, TASKS  # lazy: the package imports torch
+    from rllib_conv.partners.user_study import CONTEXTS, TASKS, first_try_scores  # lazy: the package imports torch
 
-    excluded = set(exclude_pairs)
-    first = study[(study["try"] == 1) & ~study["pair"].isin(excluded)]
-    rows = []
-    for task in TASKS:
-        for context in CONTEXTS:
-            x = first.loc[(first["task"] == task) & (first["context"] == context), "coordinated"].to_numpy(dtype=float)
-            n = len(x)
-            if n == 0:
-                continue
-            sem = float(x.std(ddof=ddof) / math.sqrt(n)) if n > ddof else math.nan
-            rows.append({"task": task, "context": context, "score": float(x.mean()), "sem": sem, "n": n, "coordinated": int(x.sum())})
-    out = pd.DataFrame(rows, columns=["task", "context", "score", "sem", "n", "coordinated"])
+    out = first_try_scores(study, exclude_pairs, ddof)
     if swap_a:
         a = out["context"] == "A"
         out.loc[a, "task"] = out.loc[a, "task"].map({"train": "test", "test": "train"})

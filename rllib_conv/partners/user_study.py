@@ -118,24 +118,25 @@ def load_user_study(path: str | Path | None = None) -> pd.DataFrame:
     return df
 
 
-def first_try_scores(df: pd.DataFrame) -> pd.DataFrame:
+def first_try_scores(df: pd.DataFrame, exclude_pairs: Iterable[int] = (), ddof: int = 1) -> pd.DataFrame:
     """Return the first-try score per task and context, as in the paper's `fig:userstudy` bar chart.
 
-    `df` is a frame from `load_user_study`. The result has one row per (task, context)
-    present at try 1, ordered train A, B, C then test A, B, C, with columns `task`,
-    `context`, `score` (mean of `coordinated` over pairs), `sem` (standard error of
-    that mean: sample std with ddof=1 over sqrt(n); NaN when n == 1) and `n` (pairs).
+    `df` is a frame from `load_user_study`; the pairs in `exclude_pairs` are left out. The
+    result has one row per (task, context) present at try 1, ordered train A, B, C then
+    test A, B, C, with columns `task`, `context`, `score` (mean of `coordinated` over
+    pairs), `sem` (standard error of that mean: std with `ddof` over sqrt(n); NaN when
+    n <= ddof), `n` (pairs) and `coordinated` (how many pairs coordinated).
     """
     if "coordinated" not in df.columns:
         raise ValueError("first_try_scores needs the `coordinated` column; pass a frame from load_user_study")
-    first = df[df["try"] == 1]
+    first = df[(df["try"] == 1) & ~df["pair"].isin(set(exclude_pairs))]
     grouped = first.groupby(["task", "context"])["coordinated"]
-    out = pd.DataFrame({"score": grouped.mean(), "sem": grouped.sem(ddof=1), "n": grouped.size()})
+    out = pd.DataFrame({"score": grouped.mean(), "sem": grouped.sem(ddof=ddof), "n": grouped.size(), "coordinated": grouped.sum()})
     # groupby sorts alphabetically ("test" before "train"); the paper reads train first.
     order = [(t, c) for t in TASKS for c in CONTEXTS if (t, c) in out.index]
     out = out.loc[order].reset_index()
-    out["n"] = out["n"].astype("int64")
-    return out[["task", "context", "score", "sem", "n"]]
+    out[["n", "coordinated"]] = out[["n", "coordinated"]].astype("int64")
+    return out[["task", "context", "score", "sem", "n", "coordinated"]]
 
 
 def user_study_partners(

@@ -71,7 +71,7 @@ class ProgressTable(Callback):
             row = {"trial": trial.trial_id, "status": trial.status}
             # The swept values (grid keys, nested ones as "model/z_dim"), else the usual identifiers.
             swept = getattr(trial, "evaluated_params", None) or {k: cfg.get(k) for k in ("population", "method", "lam", "seed") if k in cfg}
-            row.update({k: v for k, v in swept.items() if k != "config"})
+            row.update(swept)
             row["iter"] = result.get("training_iteration", 0)
             for key, label in self.METRICS:
                 value = result.get(key)
@@ -148,11 +148,10 @@ class TrimRerunResults(Callback):
 
     def on_trial_result(self, iteration: int, trials: list, trial: Any, result: dict[str, Any], **info: Any) -> None:
         current = int(result.get("training_iteration", 0))
-        files = self._files(trial)
         if trial.trial_id not in self._last:  # first result since this driver started: ask the disk
-            self._last[trial.trial_id] = max((max(self._logged(f), default=0) for f in files), default=0)
+            self._last[trial.trial_id] = max((max(self._logged(f), default=0) for f in self._files(trial)), default=0)
         if current <= self._last[trial.trial_id]:
-            for path in files:
+            for path in self._files(trial):
                 self._trim(path, before=current)
         self._last[trial.trial_id] = current
 
