@@ -11,9 +11,12 @@ lands under `<out>/<game>/`:
 | `zeroshot` | the three zero-shot steps (bandit, blocks) | `zeroshot/<experiment>.csv` |
 | `marginals` | task-module distance to the true marginals | `marginals.csv` |
 
-A finished stage leaves `<stage>.done`; running the command again skips it, and an
-interrupted stage continues where it stopped (every Tune experiment resumes). `quick`
-shrinks everything (1 seed, few partners, short runs) for the demo and the tests.
+A finished stage leaves `<stage>.done`: its wall time, then the experiments it covered.
+Running the command again skips a stage whose marker covers everything the plan asks of it;
+a wider plan (more populations or methods than a narrowed earlier run) runs the stage again,
+and inside it every finished experiment is skipped and an interrupted one continues (every
+Tune experiment resumes). `quick` shrinks everything (1 seed, few partners, short runs) for
+the demo and the tests.
 """
 
 from __future__ import annotations
@@ -255,16 +258,50 @@ class Reproduction:
         times = {}
         for name, stage in self.stages():
             marker = self.root / f"{name}.done"
-            if marker.is_file():
+            items = self.stage_items(name)
+            earlier, covered = read_marker(marker)
+            missing = [i for i in items if i not in covered]
+            if marker.is_file() and not missing:
                 self.log(f"[{self.plan.game}] {name}: done before, skipped")
                 continue
-            self.log(f"[{self.plan.game}] {name}: running")
+            more = f" (not covered before: {', '.join(missing)})" if marker.is_file() else ""
+            self.log(f"[{self.plan.game}] {name}: running{more}")
             start = time.perf_counter()
             stage()
             times[name] = time.perf_counter() - start
-            marker.write_text(f"{times[name]:.1f} s\n")
+            write_marker(marker, earlier + times[name], [*covered, *missing])
             self.log(f"[{self.plan.game}] {name}: finished in {times[name]:.0f} s")
         return times
+
+    def stage_items(self, stage: str) -> list[str]:
+        """What stage `stage` of this plan produces, one line per experiment (with the seeds), for its marker."""
+        seeds = f" seeds={','.join(map(str, self.plan.seeds))}"
+        trained = [self.experiment(p, m)["name"] for p, ms in self.populations().items() for m in ms]
+        zeroshot = [self.experiment(p, m)["name"] for p in self.plan.zeroshot_populations for m in ZEROSHOT_METHODS]
+        names = {
+            "selfplay": [sp["name"] for sp in self.plan.selfplay],
+            "train": trained,
+            "adapt": [*trained, *(f"{Path(p).name}__scratch" for p in self.populations())],
+            "zeroshot": zeroshot,
+            "marginals": sorted({*trained, *zeroshot}),
+        }[stage]
+        return [name + seeds for name in names]
+
+
+def read_marker(marker: Path) -> tuple[float, list[str]]:
+    """A stage marker's wall seconds and covered items; (0, []) when there is none.
+
+    Markers from before items were recorded hold only the time, so they cover nothing.
+    """
+    if not marker.is_file():
+        return 0.0, []
+    first, *items = marker.read_text().splitlines()
+    return float(first.split()[0]), [i for i in items if i]
+
+
+def write_marker(marker: Path, seconds: float, items: list[str]) -> None:
+    """Write a stage marker: `<seconds> s` on the first line (what `analysis` reads), then one covered item per line."""
+    marker.write_text("\n".join([f"{seconds:.1f} s", *items]) + "\n")
 
 
 def reproduce(
@@ -293,5 +330,5 @@ def stage_table(root: str | Path) -> pd.DataFrame:
     """Which stages of the games under `root` are finished, and how long they took."""
     rows = []
     for marker in sorted(Path(root).glob("*/*.done")):
-        rows.append({"game": marker.parent.name, "stage": marker.stem, "wall": marker.read_text().strip()})
+        rows.append({"game": marker.parent.name, "stage": marker.stem, "wall": f"{read_marker(marker)[0]:.1f} s"})
     return pd.DataFrame(rows)

@@ -6,7 +6,7 @@ import pandas as pd
 import pytest
 
 from rllib_conv.cli import main
-from rllib_conv.pipelines.reproduce import narrow, plan_for
+from rllib_conv.pipelines.reproduce import Reproduction, narrow, plan_for, read_marker
 
 
 def test_narrow_keeps_the_named_populations_and_methods() -> None:
@@ -28,6 +28,41 @@ def test_narrow_keeps_the_named_populations_and_methods() -> None:
 def test_narrow_rejects_unknown_names(populations, methods, match) -> None:
     with pytest.raises(ValueError, match=match):
         narrow(plan_for("bandit"), populations, methods)
+
+
+def _train_only(monkeypatch, calls: list[str]) -> None:
+    """Reproductions whose only stage is a stand-in `train` that records each call."""
+    monkeypatch.setattr(Reproduction, "stages", lambda self: [("train", lambda: calls.append(self.plan.game))])
+
+
+def test_a_stage_reruns_only_when_the_plan_asks_for_more_than_its_marker_covers(tmp_path, monkeypatch) -> None:
+    calls: list[str] = []
+    _train_only(monkeypatch, calls)
+    logs: list[str] = []
+    narrowed = narrow(plan_for("bandit"), ["bandit-s2-hand"], ["agg"])
+    Reproduction(narrowed, tmp_path, log=logs.append).run()
+    seconds, covered = read_marker(tmp_path / "train.done")
+    assert covered == ["bandit-s2-hand__modular-lam0.5 seeds=0,1,2", "bandit-s2-hand__agg seeds=0,1,2"] and seconds >= 0
+
+    Reproduction(narrow(plan_for("bandit"), ["bandit-s2-hand"], ["agg"]), tmp_path, log=logs.append).run()
+    assert len(calls) == 1 and logs[-1] == "[bandit] train: done before, skipped"
+
+    Reproduction(narrow(plan_for("bandit"), ["bandit-s2-hand"], ["maml"]), tmp_path, log=logs.append).run()
+    assert len(calls) == 2 and "not covered before: bandit-s2-hand__maml seeds=0,1,2)" in logs[-2]
+    assert read_marker(tmp_path / "train.done")[1][-1] == "bandit-s2-hand__maml seeds=0,1,2"
+
+    Reproduction(narrow(plan_for("bandit", seeds=4), ["bandit-s2-hand"], ["agg"]), tmp_path, log=logs.append).run()
+    assert len(calls) == 3  # a fourth seed is more than the marker covers
+
+
+def test_a_marker_without_items_covers_nothing(tmp_path, monkeypatch) -> None:
+    calls: list[str] = []
+    _train_only(monkeypatch, calls)
+    (tmp_path / "train.done").write_text("12.5 s\n")  # written before markers listed their experiments
+    assert read_marker(tmp_path / "train.done") == (12.5, [])
+    Reproduction(narrow(plan_for("bandit"), ["bandit-s2-hand"], ["agg"]), tmp_path, log=lambda _: None).run()
+    seconds, covered = read_marker(tmp_path / "train.done")
+    assert calls == ["bandit"] and seconds >= 12.5 and len(covered) == 2
 
 
 def test_quick_reproduction_runs_every_stage_and_builds_the_report(ray_session, tmp_path, capsys) -> None:
