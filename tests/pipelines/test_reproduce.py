@@ -7,6 +7,7 @@ import pytest
 
 from rllib_conv.cli import main
 from rllib_conv.pipelines.reproduce import Reproduction, narrow, plan_for, read_marker
+from rllib_conv.pipelines.train import CONFIG_FILE
 
 
 def test_narrow_keeps_the_named_populations_and_methods() -> None:
@@ -63,6 +64,20 @@ def test_a_marker_without_items_covers_nothing(tmp_path, monkeypatch) -> None:
     Reproduction(narrow(plan_for("bandit"), ["bandit-s2-hand"], ["agg"]), tmp_path, log=lambda _: None).run()
     seconds, covered = read_marker(tmp_path / "train.done")
     assert calls == ["bandit"] and seconds >= 12.5 and len(covered) == 2
+
+
+def test_marginals_leave_out_populations_whose_conventions_are_not_uniform(tmp_path, monkeypatch) -> None:
+    plan = narrow(plan_for("bandit"), ["bandit-s2-hand", "bandit-user-study"], ["agg"])
+    repro = Reproduction(plan, tmp_path, log=lambda _: None)
+    assert repro.stage_items("marginals") == [f"bandit-s2-hand__{m} seeds=0,1,2" for m in ("agg", "modular-lam0.5", "no_task_logits")]
+    assert len(repro.stage_items("train")) == 4  # the user-study egos are still trained and adapted
+    for name in ("bandit-s2-hand__agg", "bandit-user-study__agg"):
+        (tmp_path / "runs" / name / "trial_0").mkdir(parents=True)
+        (tmp_path / "runs" / name / "trial_0" / CONFIG_FILE).write_text("{}")
+    seen: list[str] = []
+    monkeypatch.setattr("rllib_conv.pipelines.reproduce.marginal_report", lambda trials: seen.extend(t.parent.name for t in trials) or pd.DataFrame({"run": [str(t) for t in trials]}))
+    repro.stage_marginals()
+    assert seen == ["bandit-s2-hand__agg"]
 
 
 def test_quick_reproduction_runs_every_stage_and_builds_the_report(ray_session, tmp_path, capsys) -> None:
