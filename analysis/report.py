@@ -130,7 +130,8 @@ class Comparison:
 
 @dataclass
 class ClaimCheck:
-    """A paper claim checked on our data: 'supported', 'supported (intervals overlap)', 'contradicted', 'undetermined'."""
+    """A paper claim checked on our data: 'supported', 'supported (intervals overlap)', 'not shown (intervals overlap)',
+    'contradicted', 'undetermined'."""
 
     claim: paper.Claim
     scope: str
@@ -257,10 +258,21 @@ def _training_section(ctx: Context) -> str:
 
 
 def _better(a: tuple[float, float, float], b: tuple[float, float, float]) -> str:
-    """'clear' if a's interval is above b's, 'mean' if only a's mean is higher, 'no' otherwise."""
+    """'clear' if a's interval is above b's, 'mean' if only a's mean is higher, 'tie' if a's mean is not higher
+    but the intervals overlap, 'no' otherwise (a's interval below b's, or no intervals to tell)."""
     if a[0] > b[0]:
         return "clear" if np.isfinite(a[1]) and np.isfinite(b[2]) and a[1] > b[2] else "mean"
-    return "no"
+    return "tie" if np.isfinite(a[2]) and np.isfinite(b[1]) and a[2] >= b[1] else "no"
+
+
+def _verdict(outcomes: list[str]) -> str:
+    """The verdict on 'a beats every b' from `_better`'s outcomes: a lower mean inside overlapping
+    intervals is 'not shown', not 'contradicted'."""
+    if all(o == "clear" for o in outcomes):
+        return "supported"
+    if all(o in ("clear", "mean") for o in outcomes):
+        return "supported (intervals overlap)"
+    return "contradicted" if "no" in outcomes else "not shown (intervals overlap)"
 
 
 def _adaptation_claims(ctx: Context, auc: pd.DataFrame) -> list[ClaimCheck]:
@@ -279,13 +291,9 @@ def _adaptation_claims(ctx: Context, auc: pd.DataFrame) -> list[ClaimCheck]:
             b = (p.at[best, "mean"], p.at[best, "lo"], p.at[best, "hi"])
             outcomes = {lab: _better(b, (p.at[lab, "mean"], p.at[lab, "lo"], p.at[lab, "hi"])) for lab in base}
             evidence = f"best regularised: {label_name(best)} AUC {b[0]:.3f}; " + ", ".join(f"{label_name(lab)} {p.at[lab, 'mean']:.3f}" for lab in base)
-            if all(v == "clear" for v in outcomes.values()):
-                verdict = "supported"
-            elif all(v != "no" for v in outcomes.values()):
-                verdict = "supported (intervals overlap)"
-            else:
-                verdict = "contradicted"
-                beaten_by = [label_name(lab) for lab, v in outcomes.items() if v == "no"]
+            verdict = _verdict(list(outcomes.values()))
+            beaten_by = [label_name(lab) for lab, v in outcomes.items() if v in ("tie", "no")]
+            if beaten_by:
                 evidence += f"; not above {', '.join(beaten_by)}"
             checks.append(ClaimCheck(claims["regularised-best"], scope, verdict, evidence, game))
         if "oracle" in p.index:
@@ -435,7 +443,7 @@ def _zeroshot_section(ctx: Context) -> str:
             a = (s.at["modular-lam0.5", "mean"], s.at["modular-lam0.5", "lo"], s.at["modular-lam0.5", "hi"])
             b = (s.at["no_task_logits", "mean"], s.at["no_task_logits", "lo"], s.at["no_task_logits", "hi"])
             outcome = _better(a, b)
-            verdict = {"clear": "supported", "mean": "supported (intervals overlap)", "no": "contradicted"}[outcome]
+            verdict = _verdict([outcome])
             checks.append(ClaimCheck(claim, population_name(population), verdict, f"ours λ=0.5 {a[0]:.3f} vs BaselineModular {b[0]:.3f}", ctx.game_of_population(population)))
     ctx.claims += checks
     if checks:
@@ -505,7 +513,7 @@ def _marginals_section(ctx: Context) -> str:
             a = (s.at["modular-lam0", "mean"], s.at["modular-lam0", "lo"], s.at["modular-lam0", "hi"])
             # Lower is better here: "better" means the baseline's distance exceeds λ=0's.
             outcomes = [_better((s.at[b, "mean"], s.at[b, "lo"], s.at[b, "hi"]), a) for b in base]
-            verdict = "supported" if all(o == "clear" for o in outcomes) else "supported (intervals overlap)" if all(o != "no" for o in outcomes) else "contradicted"
+            verdict = _verdict(outcomes)
             checks.append(ClaimCheck(claims["lam0-below-baselines"], scope, verdict, f"λ=0.0 {a[0]:.3f}; " + ", ".join(f"{label_name(b)} {s.at[b, 'mean']:.3f}" for b in base), game))
     ctx.claims += checks
     lines += _claims_block("the marginals", paper.MARGINAL_CLAIMS, checks)
@@ -636,7 +644,8 @@ def _differences_section(ctx: Context) -> str:
     lines.append(
         f"{len(ctx.comparisons)} paper numbers compared: {len(inside)} inside our 95% interval, {len(differ)} differ, "
         f"{len(close)} close to a single run of ours (no interval). Claims checked: {len(ctx.claims)} "
-        f"({sum(c.verdict.startswith('supported') for c in ctx.claims)} supported, {sum(c.verdict == 'contradicted' for c in ctx.claims)} contradicted, "
+        f"({sum(c.verdict.startswith('supported') for c in ctx.claims)} supported, {sum(c.verdict.startswith('not shown') for c in ctx.claims)} not shown "
+        f"(a lower mean inside overlapping intervals), {sum(c.verdict == 'contradicted' for c in ctx.claims)} contradicted, "
         f"{sum(c.verdict == 'undetermined' for c in ctx.claims)} undetermined)."
     )
     if differ:
@@ -648,15 +657,17 @@ def _differences_section(ctx: Context) -> str:
                 f"{c.direction}. Why: {why}."
             )
     contradicted = [c for c in ctx.claims if c.verdict == "contradicted"]
-    if contradicted:
-        lines += ["", "### Claims our data contradict", ""]
-        for c in contradicted:
+    not_shown = [c for c in ctx.claims if c.verdict.startswith("not shown")]
+    for title, checks in (("Claims our data contradict", contradicted), ("Claims our data do not show (a lower mean inside overlapping intervals)", not_shown)):
+        if checks:
+            lines += ["", f"### {title}", ""]
+        for c in checks:
             why = "quick plan (short runs): not a test of the claim" if ctx.quick(c.game) else "see the section's table above"
             lines.append(f"- *{c.claim.text}* ({c.scope}): {c.evidence}. Why: {why}.")
     if ctx.notes:
         lines += ["", "### Absent or partial data, and other differences", ""]
         lines += [f"- {n}" for n in ctx.notes]
-    if not differ and not contradicted and not ctx.notes:
+    if not differ and not contradicted and not not_shown and not ctx.notes:
         lines += ["", "No difference found."]
     return "\n".join(lines)
 

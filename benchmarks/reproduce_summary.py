@@ -61,8 +61,9 @@ def summary(root: Path) -> dict:
             out["zeroshot"].append({"population": population, "method": label, "return": _ci(group[value])})
     marginals = loaders.load_marginals(root)
     if not marginals.empty:
-        for (population, method, lam), group in marginals.groupby(["population", "method", "lam"]):
-            out["marginals"].append({"population": population, "method": method, "lam": lam, "distance": _ci(group["distance"])})
+        # By label, not (method, lam): low-dimensional z at lam 0.5 is a different ego from modular at lam 0.5.
+        for (population, label), group in marginals.groupby(["population", "label"]):
+            out["marginals"].append({"population": population, "method": label, "distance": _ci(group["distance"])})
     return out
 
 

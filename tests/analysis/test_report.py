@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from analysis.report import build_report
+from analysis.report import _better, _verdict, build_report
 
 FIXTURE = Path(__file__).parent / "fixtures" / "repro"
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
@@ -46,6 +46,33 @@ def test_adaptation_auc_row(text: str) -> None:
     # Exact returns at steps 0, 16, 32, 48, 64: 0.4647, 0.5509, 0.6729, 0.7732, 0.8366 -> AUC 0.660.
     assert "| Arms 2 | ours λ=0.5 | 5 | 64 | 0.465 (n=1, no interval) | 0.837 (n=1, no interval) | 0.660 (n=1, no interval) | exact |" in text
     assert "| Arms 2 | contradicted | best regularised: ours λ=0.5 AUC 0.660; BaselineAgg 0.825; not above BaselineAgg |" in text
+
+
+@pytest.mark.parametrize(
+    ("a", "b", "outcome"),
+    [
+        ((0.9, 0.85, 0.95), (0.7, 0.6, 0.8), "clear"),
+        ((0.9, 0.85, 0.95), (0.88, 0.8, 0.96), "mean"),
+        ((0.924, 0.916, 0.932), (0.928, 0.906, 0.950), "tie"),  # the bandit Arms 3 numbers: a lower mean, overlapping
+        ((0.7, 0.6, 0.8), (0.9, 0.85, 0.95), "no"),
+        ((0.66, float("nan"), float("nan")), (0.82, float("nan"), float("nan")), "no"),  # one run each: nothing to overlap
+    ],
+)
+def test_better_tells_a_tie_inside_overlapping_intervals_from_a_loss(a, b, outcome) -> None:
+    assert _better(a, b) == outcome
+
+
+@pytest.mark.parametrize(
+    ("outcomes", "verdict"),
+    [
+        (["clear", "clear"], "supported"),
+        (["clear", "mean"], "supported (intervals overlap)"),
+        (["clear", "tie"], "not shown (intervals overlap)"),
+        (["tie", "no"], "contradicted"),
+    ],
+)
+def test_verdict_counts_a_tie_as_not_shown_and_a_loss_as_contradicted(outcomes, verdict) -> None:
+    assert _verdict(outcomes) == verdict
 
 
 def test_user_study_section(text: str) -> None:
