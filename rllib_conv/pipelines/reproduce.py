@@ -29,6 +29,7 @@ from typing import Any, Callable
 
 import pandas as pd
 
+from analysis.loaders import split_experiment
 from rllib_conv import config, partners
 from rllib_conv.config import SelfPlayConfig
 from rllib_conv.pipelines.adapt import run_adaptation
@@ -238,11 +239,15 @@ class Reproduction:
                 raw = _merge({"name": name, "runs": [str(self.runs / name)]}, self.plan.zeroshot_overrides)
                 run_zeroshot(config.from_dict(raw, schema=config.ZeroShotConfig), out=self.root / "zeroshot", storage=self.runs, address=self.address)
 
+    def has_marginals(self, experiment: str) -> bool:
+        """Whether the marginals stage measures experiment `<population>__<label>` (see `Plan.no_marginals`)."""
+        return split_experiment(experiment)[0] not in self.plan.no_marginals
+
     def stage_marginals(self) -> None:
         from rllib_conv.pipelines.adapt import trial_folders
         from rllib_conv.pipelines.train import CONFIG_FILE
 
-        experiments = [e for e in sorted(self.runs.glob("*__*")) if e.name.split("__")[0] not in self.plan.no_marginals]
+        experiments = [e for e in sorted(self.runs.glob("*__*")) if self.has_marginals(e.name)]
         trials = [t for exp in experiments if any(exp.glob(f"*/{CONFIG_FILE}")) for t in trial_folders(exp)]
         table = marginal_report(trials)
         table["experiment"] = [Path(r).parent.name for r in table["run"]]
@@ -289,7 +294,7 @@ class Reproduction:
             "train": trained,
             "adapt": [*trained, *(f"{Path(p).name}__scratch" for p in self.populations())],
             "zeroshot": zeroshot,
-            "marginals": sorted(n for n in {*trained, *zeroshot} if n.split("__")[0] not in self.plan.no_marginals),
+            "marginals": sorted(n for n in {*trained, *zeroshot} if self.has_marginals(n)),
         }[stage]
         return [name + seeds for name in names]
 
