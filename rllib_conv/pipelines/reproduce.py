@@ -32,10 +32,10 @@ import pandas as pd
 from analysis.loaders import split_experiment
 from rllib_conv import config, partners
 from rllib_conv.config import SelfPlayConfig
-from rllib_conv.pipelines.adapt import run_adaptation
+from rllib_conv.pipelines.adapt import run_adaptation, trial_folders
 from rllib_conv.pipelines.marginals import marginal_report
 from rllib_conv.pipelines.selfplay import train_population
-from rllib_conv.pipelines.train import run
+from rllib_conv.pipelines.train import CONFIG_FILE, run
 from rllib_conv.pipelines.zeroshot import run_zeroshot
 
 GAMES = ("bandit", "blocks", "hanabi")
@@ -244,9 +244,6 @@ class Reproduction:
         return split_experiment(experiment)[0] not in self.plan.no_marginals
 
     def stage_marginals(self) -> None:
-        from rllib_conv.pipelines.adapt import trial_folders
-        from rllib_conv.pipelines.train import CONFIG_FILE
-
         experiments = [e for e in sorted(self.runs.glob("*__*")) if self.has_marginals(e.name)]
         trials = [t for exp in experiments if any(exp.glob(f"*/{CONFIG_FILE}")) for t in trial_folders(exp)]
         table = marginal_report(trials)
