@@ -125,10 +125,21 @@ def bayes_optimal_return(num_contexts: int, symmetric: int, episodes: int) -> fl
 
 
 def curve_band(curves: pd.DataFrame) -> pd.DataFrame:
-    """Per (game, population, label, steps): mean return over curves with its 95% interval (the bands of the adaptation figures)."""
+    """Per (game, population, label, evaluation point): mean return over curves with its 95% interval (the bands of the adaptation figures).
+
+    Points are matched by their order within each curve, not by step count: on multi-step
+    games an update waits for episodes to end, so the k-th evaluation of one curve lands a
+    few env steps away from another's (Hanabi: 1280, 1281, 1287). `steps` is the point's
+    mean step count.
+    """
+    keys = ["game", "population", "label", "point"]
     if curves.empty:
-        return pd.DataFrame(columns=["game", "population", "label", "steps", "mean", "lo", "hi", "n"])
-    return summarise(with_value(curves), ["game", "population", "label", "steps"], "value")
+        return pd.DataFrame(columns=[*keys[:3], "steps", "mean", "lo", "hi", "n"])
+    data = with_value(curves).sort_values("steps")
+    data["point"] = data.groupby(CURVE_KEYS, sort=False, dropna=False).cumcount()
+    band = summarise(data, keys, "value")
+    steps = data.groupby(keys, dropna=False)["steps"].mean().round().astype("int64").rename("steps").reset_index()
+    return band.merge(steps, on=keys).drop(columns="point")[[*keys[:3], "steps", "mean", "lo", "hi", "n"]]
 
 
 # --- user study --------------------------------------------------------------------------

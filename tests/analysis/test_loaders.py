@@ -11,7 +11,7 @@ import pandas as pd
 import pytest
 
 from analysis import loaders
-from analysis.summaries import adaptation_auc, mean_ci, summarise, t975, value_column, with_value
+from analysis.summaries import adaptation_auc, curve_band, mean_ci, summarise, t975, value_column, with_value
 
 FIXTURE = Path(__file__).parent / "fixtures" / "repro"
 GAME = FIXTURE / "bandit"
@@ -199,6 +199,17 @@ def test_adaptation_auc_on_fixture() -> None:
     assert auc.loc["agg", "points"] == 5 and auc.loc["agg", "last_step"] == 64
     assert (auc["value_source"] == "exact_return").all()
     assert set(with_value(loaders.load_zeroshot(FIXTURE))["value_source"]) == {"exact_return"}
+
+
+def test_curve_band_matches_points_by_order_not_step_count() -> None:
+    # Two Hanabi-like curves whose evaluations land a few steps apart: 3 points, 2 curves each.
+    base = {"game": "hanabi", "population": "p", "label": "m", "run": "r", "seed": 0}
+    rows = [
+        {**base, "partner": "a", "steps": s, "mean_return": v} for s, v in [(0, 1.0), (640, 2.0), (1281, 3.0)]
+    ] + [{**base, "partner": "b", "steps": s, "mean_return": v} for s, v in [(0, 3.0), (642, 4.0), (1287, 5.0)]]
+    band = curve_band(pd.DataFrame(rows))
+    assert band["steps"].tolist() == [0, 641, 1284]
+    assert band["mean"].tolist() == [2.0, 3.0, 4.0] and band["n"].tolist() == [2, 2, 2]
 
 
 def test_load_sweep_reads_an_experiment_folder(tmp_path) -> None:
