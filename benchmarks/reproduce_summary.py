@@ -7,7 +7,7 @@ bayes_optimal_return`); the zero-shot return per method; the marginal distance p
 Writes `benchmarks/results/reproduce_<name>.json` with the reproduce command recorded in
 the folder's plan.json.
 
-    .venv/bin/python benchmarks/reproduce_summary.py ROOT/bandit --name bandit_core
+    .venv/bin/python benchmarks/reproduce_summary.py ROOT/bandit --name bandit
 """
 
 from __future__ import annotations
