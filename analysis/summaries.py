@@ -133,13 +133,14 @@ def curve_band(curves: pd.DataFrame) -> pd.DataFrame:
     mean step count.
     """
     keys = ["game", "population", "label", "point"]
+    columns = [*keys[:3], "steps", "mean", "lo", "hi", "n"]
     if curves.empty:
-        return pd.DataFrame(columns=[*keys[:3], "steps", "mean", "lo", "hi", "n"])
+        return pd.DataFrame(columns=columns)
     data = with_value(curves).sort_values("steps")
     data["point"] = data.groupby(CURVE_KEYS, sort=False, dropna=False).cumcount()
     band = summarise(data, keys, "value")
     steps = data.groupby(keys, dropna=False)["steps"].mean().round().astype("int64").rename("steps").reset_index()
-    return band.merge(steps, on=keys).drop(columns="point")[[*keys[:3], "steps", "mean", "lo", "hi", "n"]]
+    return band.merge(steps, on=keys)[columns]
 
 
 # --- user study --------------------------------------------------------------------------
