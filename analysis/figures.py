@@ -55,7 +55,8 @@ def save(fig: Figure, path_stem: str | Path, dpi: int = 130) -> tuple[Path, Path
     stem.parent.mkdir(parents=True, exist_ok=True)
     png, pdf = stem.with_name(stem.name + ".png"), stem.with_name(stem.name + ".pdf")
     fig.savefig(png, dpi=dpi, bbox_inches="tight")
-    fig.savefig(pdf, bbox_inches="tight")
+    # No creation date: a rebuilt report leaves unchanged figures byte-identical (no git churn).
+    fig.savefig(pdf, bbox_inches="tight", metadata={"CreationDate": None})
     plt.close(fig)
     return png, pdf
 

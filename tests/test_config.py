@@ -67,6 +67,16 @@ def test_set_overrides_and_their_errors(tmp_path) -> None:
         config.load(write(tmp_path, {"population": "p"}), ["ppo.num_epochs=many"])
 
 
+@pytest.mark.parametrize(("schema", "key"), [(config.ExperimentConfig, "ppo.entropy_coeff"), (config.ZeroShotConfig, "task_entropy")])
+def test_entropy_schedules_are_checked(tmp_path, schema, key) -> None:
+    base = {"population": "p"} if schema is config.ExperimentConfig else {"runs": ["r"]}
+    good = config.from_dict(base, [f"{key}=[[0, 0.05], [200000, 0.0]]"], schema=schema)
+    assert config.validate(good, schema=schema)
+    for bad in ("[[100, 0.05]]", "[[0, 0.05], [0, 0.0]]", "[]"):
+        with pytest.raises(ValueError, match=f"{key}.*a schedule must be"):
+            config.validate(config.from_dict(base, [f"{key}={bad}"], schema=schema), schema=schema)
+
+
 def test_missing_and_broken_files(tmp_path) -> None:
     with pytest.raises(ValueError, match="does not exist"):
         config.load(tmp_path / "nope.yaml")

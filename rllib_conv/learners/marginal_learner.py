@@ -13,6 +13,8 @@ without gradients). Settings come from `config.learners(learner_config_dict=...)
 - `freeze` (list): module IDs, or the groups `"task"` and `"heads"`, whose weights must
   not change: their parameters get `requires_grad=False` and no optimizer.
 - `adam_eps` (float, default 1e-5, the paper's code): Adam's epsilon.
+- `z_lr_scale` (float, default 1): the task module's z layers (its policy tower) learn at
+  `lr * z_lr_scale` through an optimizer of their own; 0 freezes them.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from typing import Any
 import torch
 from ray.rllib.algorithms.ppo.torch.ppo_torch_learner import PPOTorchLearner
 from ray.rllib.core import ALL_MODULES
+from ray.rllib.core.learner.learner import DEFAULT_OPTIMIZER
 
 from rllib_conv.learners.drop_bootstrap_rows import DropBootstrapRows
 from rllib_conv.modules.multi import ALL_HEAD_LOGITS, TASK_ID
@@ -68,17 +71,27 @@ class MarginalPPOLearner(PPOTorchLearner):
             for p in module.parameters():
                 p.requires_grad_(False)
             return
-        params = self.get_parameters(module)
-        if not params:
-            return
+        scale = float(self.config.learner_config_dict.get("z_lr_scale", 1.0))
+        z_params = list(module.pi_tower.parameters()) if module_id == TASK_ID and scale != 1.0 else []
+        z_ids = {id(p) for p in z_params}
+        groups = {DEFAULT_OPTIMIZER: ([p for p in self.get_parameters(module) if id(p) not in z_ids], config.lr)}
+        if z_params and scale == 0.0:
+            for p in z_params:
+                p.requires_grad_(False)
+        elif z_params:
+            # Adam is invariant to the gradient's scale: a slower z needs a learning rate of its own.
+            groups["z"] = (z_params, config.lr * scale)
         eps = float(self.config.learner_config_dict.get("adam_eps", 1e-5))
-        self.register_optimizer(
-            module_id=module_id,
-            # foreach: one fused kernel per step instead of a Python loop over tensors.
-            optimizer=torch.optim.Adam(params, eps=eps, foreach=True),
-            params=params,
-            lr_or_lr_schedule=config.lr,
-        )
+        for name, (params, lr) in groups.items():
+            if params:
+                self.register_optimizer(
+                    module_id=module_id,
+                    optimizer_name=name,
+                    # foreach: one fused kernel per step instead of a Python loop over tensors.
+                    optimizer=torch.optim.Adam(params, eps=eps, foreach=True),
+                    params=params,
+                    lr_or_lr_schedule=lr,
+                )
 
     def compute_losses(self, *, fwd_out: dict[str, Any], batch: dict[str, Any]) -> dict[str, Any]:
         shared = fwd_out.pop(TASK_ID, None)  # the task module has no batch and no loss of its own

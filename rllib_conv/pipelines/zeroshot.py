@@ -57,6 +57,26 @@ def zeroshot_plan(cfg: ZeroShotConfig) -> dict[str, Any]:
         "checkpoint": last_checkpoint(trial) / RL_MODULE_DIR,
         "head_steps": cfg.head_steps or defaults["head_steps"],
         "task_steps": cfg.task_steps or defaults["task_steps"],
+        **step_experiments(trained, cfg),
+    }
+
+
+def step_experiments(trained: ExperimentConfig, cfg: ZeroShotConfig) -> dict[str, ExperimentConfig]:
+    """Return the ego settings of step 1 (`heads`: test heads, old task) and step 2 (`task`: task module, new task).
+
+    Both regulariser weights default to the run's lam; they apply to runs with learned task
+    logits (`modular`) only, the others have none to regularise and keep 0.
+    """
+
+    def weight(lam: float | None) -> float:
+        return (trained.lam if lam is None else lam) if trained.method == "modular" else 0.0
+
+    ppo = trained.ppo.model_copy(update={"entropy_coeff": cfg.task_entropy})
+    return {
+        "heads": trained.model_copy(update={"lam": weight(cfg.head_lam), "freeze": ["task"]}),
+        "task": trained.model_copy(
+            update={"freeze": ["heads"], "ppo": ppo, "env_config": {}, "lam": weight(cfg.task_lam), "z_lr_scale": cfg.task_z_lr_scale}
+        ),
     }
 
 
@@ -67,20 +87,16 @@ class ZeroShotTrainable(tune.Trainable):
         torch.set_num_threads(1)
         self.cfg = ZeroShotConfig.model_validate(config)
         self.plan = zeroshot_plan(self.cfg)
-        trained, old, ckpt = self.plan["trained"], self.plan["old"], self.plan["checkpoint"]
-        heads = trained.model_copy(update={"lam": 0.0, "freeze": ["task"]})
-        self.heads_setup = setup_for(heads, old, old.entries("test"))
+        old, ckpt = self.plan["old"], self.plan["checkpoint"]
+        self.heads_setup = setup_for(self.plan["heads"], old, old.entries("test"))
         self.algo = build_ppo_config(self.heads_setup, {TASK_ID: str(ckpt / TASK_ID)}).build_algo()
         self.phase, self.phase_steps, self.composed = 1, 0, None
 
     def _start_task_phase(self) -> None:
-        trained, new, ckpt = self.plan["trained"], self.plan["new"], self.plan["checkpoint"]
+        new, ckpt = self.plan["new"], self.plan["checkpoint"]
         self.composed = self.algo.env_runner.module  # test heads (and the old task module, replaced below)
         self.algo.stop()
-        ppo = trained.ppo.model_copy(update={"entropy_coeff": self.cfg.task_entropy})
-        lam = trained.lam if self.cfg.task_lam is None else self.cfg.task_lam
-        task = trained.model_copy(update={"freeze": ["heads"], "ppo": ppo, "env_config": {}, "lam": lam})
-        self.task_setup = setup_for(task, new, new.entries("train"))
+        self.task_setup = setup_for(self.plan["task"], new, new.entries("train"))
         load = {TASK_ID: str(ckpt / TASK_ID), **{ego_id(e.name): str(ckpt / ego_id(e.name)) for e in new.entries("train")}}
         self.algo = build_ppo_config(self.task_setup, load).build_algo()
         if self.cfg.reset_task_logits:

@@ -127,3 +127,15 @@ def test_user_study_bars(tmp_path: Path) -> None:
     ax = fig.axes[0]
     assert len(bars(ax)) == 6 and crosses(ax) == 6
     check_saved(fig, tmp_path, "userstudy")
+
+
+def test_saved_figures_are_byte_identical_when_rebuilt(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    def build(stem: Path, epoch: str) -> tuple[Path, Path]:
+        monkeypatch.setenv("SOURCE_DATE_EPOCH", epoch)  # matplotlib's clock for the PDF creation date
+        fig = Figure()
+        fig.add_subplot().plot([0, 1, 2], [1, 3, 2])
+        return figures.save(fig, stem)
+
+    first, second = build(tmp_path / "a", "1700000000"), build(tmp_path / "b", "1800000000")
+    for x, y in zip(first, second):
+        assert x.read_bytes() == y.read_bytes(), x.name

@@ -84,3 +84,20 @@ def test_heads_share_the_learners_task_module() -> None:
         head = learner.module[mid]
         assert isinstance(head, PartnerHeadModule) and head.task is task
     assert "task" not in dict(learner.module[learner.module.head_ids()[0]].named_children())
+
+
+@pytest.mark.parametrize("scale", [0.1, 0.0])
+def test_z_layers_learn_at_their_own_rate(scale: float) -> None:
+    learner = build_learner(bandit_setup(lam=0.5, z_lr_scale=scale))
+    task = learner.module[TASK_ID]
+    before = params_of(task)
+    learner._update(hand_batch(learner.module.head_ids()))
+
+    def largest_move(prefix: str) -> float:
+        return max((p.detach() - before[k]).abs().max().item() for k, p in task.named_parameters() if k.startswith(prefix))
+
+    # Adam's first step moves each parameter by at most its learning rate, about that much
+    # where the gradient is not tiny: lr x scale for the z layers, lr for the task logits.
+    assert LR * scale * 0.9 <= largest_move("pi_tower") <= LR * scale * 1.001
+    assert LR * 0.9 <= largest_move("pi_out") <= LR * 1.001
+    assert all(p.requires_grad == (scale > 0) for p in task.pi_tower.parameters())

@@ -65,6 +65,25 @@ def test_zero_shot_refuses_non_modular_runs(tmp_path) -> None:
         zeroshot_plan(ZeroShotConfig(runs=[str(trial)], run=str(trial)))
 
 
+@pytest.mark.parametrize("method", ["modular", "no_task_logits"])
+def test_zero_shot_steps_carry_their_settings(method: str) -> None:
+    from rllib_conv.config import ZeroShotConfig
+    from rllib_conv.pipelines.zeroshot import step_experiments
+
+    trained = ExperimentConfig(population="blocks-perm", method=method, lam=0.5 if method == "modular" else 0.0)
+    cfg = ZeroShotConfig(runs=["-"], head_lam=0.3, task_z_lr_scale=0.2, task_entropy=0.01)
+    steps = step_experiments(trained, cfg)
+    heads, task = steps["heads"], steps["task"]
+    assert heads.freeze == ["task"] and task.freeze == ["heads"]
+    # Only learned task logits have a regulariser; unset weights are the run's lam.
+    assert (heads.lam, task.lam) == ((0.3, 0.5) if method == "modular" else (0.0, 0.0))
+    defaults = step_experiments(trained, ZeroShotConfig(runs=["-"]))
+    assert defaults["heads"].lam == defaults["task"].lam == trained.lam
+    assert (heads.z_lr_scale, task.z_lr_scale) == (1.0, 0.2)
+    assert (heads.ppo.entropy_coeff, task.ppo.entropy_coeff) == (trained.ppo.entropy_coeff, 0.01)
+    assert trained.lam == (0.5 if method == "modular" else 0.0) and trained.freeze == []  # the run's config is untouched
+
+
 def test_outer_update_by_hand() -> None:
     theta = {"task": {"w": torch.tensor([1.0, 2.0])}}
     adapted = {"task": {"w": torch.tensor([3.0, -2.0])}}
