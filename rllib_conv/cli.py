@@ -169,7 +169,7 @@ def _cmd_play(args: argparse.Namespace) -> None:
 def _cmd_reproduce(args: argparse.Namespace) -> None:
     from rllib_conv.pipelines.reproduce import reproduce, stage_table
 
-    reproduce(args.game, out=args.out, seeds=args.seeds, quick=args.quick, address=args.address, populations=args.populations, methods=args.methods)
+    reproduce(args.game, out=args.out, seeds=args.seeds, quick=args.quick, address=args.address, populations=args.populations, methods=args.methods, redo=args.redo)
     print(stage_table(args.out).to_string(index=False))
 
 
@@ -256,6 +256,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="reproduce", help="output folder (default: reproduce)")
     p.add_argument("--populations", nargs="+", metavar="NAME", help="only these populations (e.g. bandit-s2-hand bandit-s1-hand)")
     p.add_argument("--methods", nargs="+", metavar="LABEL", help="only these methods (e.g. agg maml; modular-lam0.5 is always run)")
+    p.add_argument(
+        "--redo", choices=["adapt", "zeroshot", "marginals"],
+        help="run this finished stage again for the plan's experiments; their old outputs move to <out>/<game>/superseded/",
+    )
     p.add_argument("--address", default=None, help="Ray cluster address; default: $RAY_ADDRESS or a local Ray")
     p.set_defaults(func=_cmd_reproduce)
 

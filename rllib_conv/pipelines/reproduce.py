@@ -17,11 +17,18 @@ a wider plan (more populations or methods than a narrowed earlier run) runs the 
 and inside it every finished experiment is skipped and an interrupted one continues (every
 Tune experiment resumes). `quick` shrinks everything (1 seed, few partners, short runs) for
 the demo and the tests.
+
+`redo` (`--redo adapt|zeroshot|marginals`) runs a finished stage again for the plan's
+experiments, after a default or the code changed: their outputs (CSV and Tune folder) move
+to `superseded/<time>/` under the game folder, never deleted, and the marker stops
+covering them. Without it an unchanged config would find its finished Tune experiment and
+return the old results.
 """
 
 from __future__ import annotations
 
 import json
+import shutil
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -169,6 +176,11 @@ def narrow(plan: Plan, populations: list[str] | None = None, methods: list[str] 
     return plan
 
 
+# Stages `redo` can run again: where each experiment's CSV and Tune folder live. Training and
+# self-play feed every later stage, so redoing those means a fresh output folder.
+REDO_OUTPUTS = {"adapt": ("adaptation", "adapt-"), "zeroshot": ("zeroshot", "zeroshot-"), "marginals": None}
+
+
 def _merge(base: dict[str, Any], extra: dict[str, Any]) -> dict[str, Any]:
     out = dict(base)
     for k, v in extra.items():
@@ -281,6 +293,31 @@ class Reproduction:
             self.log(f"[{self.plan.game}] {name}: finished in {times[name]:.0f} s")
         return times
 
+    def redo(self, stage: str) -> list[Path]:
+        """Move this plan's outputs of `stage` to `superseded/<time>/` and uncover them in its marker; return where they went."""
+        if stage not in REDO_OUTPUTS:
+            raise ValueError(f"--redo: expected one of {sorted(REDO_OUTPUTS)}, got {stage!r}")
+        items = self.stage_items(stage)
+        if stage == "marginals":
+            outputs = [self.root / "marginals.csv"]
+        else:
+            folder, prefix = REDO_OUTPUTS[stage]
+            names = [item.split(" seeds=")[0] for item in items]
+            outputs = [p for n in names for p in (self.root / folder / f"{n}.csv", self.runs / f"{prefix}{n}")]
+        dest = self.root / "superseded" / time.strftime("%Y%m%d-%H%M%S")
+        moved = []
+        for path in outputs:
+            if path.exists():
+                target = dest / path.relative_to(self.root)
+                target.parent.mkdir(parents=True, exist_ok=True)
+                moved.append(Path(shutil.move(path, target)))
+        marker = self.root / f"{stage}.done"
+        if marker.is_file():
+            seconds, covered = read_marker(marker)
+            write_marker(marker, seconds, [c for c in covered if c not in items])
+        self.log(f"[{self.plan.game}] {stage}: {len(moved)} output(s) moved to {dest}, to be redone")
+        return moved
+
     def stage_items(self, stage: str) -> list[str]:
         """What stage `stage` of this plan produces, one line per experiment (with the seeds), for its marker."""
         seeds = f" seeds={','.join(map(str, self.plan.seeds))}"
@@ -320,16 +357,23 @@ def reproduce(
     address: str | None = None,
     populations: list[str] | None = None,
     methods: list[str] | None = None,
+    redo: str | None = None,
 ) -> dict[str, dict[str, float]]:
     """Run `game` (or `all`), optionally `narrow`ed, then build `<out>/report/report.md` over every game under `out`.
 
+    `redo` names a finished stage to run again for the plan's experiments (see `Reproduction.redo`).
     Returns the stage wall times per game.
     """
     from analysis.report import build_report
 
     games = GAMES if game == "all" else (game,)
     plans = [narrow(plan_for(g, seeds, quick), populations, methods) for g in games]  # validate every game before running any
-    times = {p.game: Reproduction(p, Path(out) / p.game, address).run() for p in plans}
+    times = {}
+    for plan in plans:
+        repro = Reproduction(plan, Path(out) / plan.game, address)
+        if redo is not None:
+            repro.redo(redo)
+        times[plan.game] = repro.run()
     print(f"report: {build_report(out)}")
     return times
 

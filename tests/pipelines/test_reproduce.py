@@ -95,3 +95,31 @@ def test_quick_reproduction_runs_every_stage_and_builds_the_report(ray_session, 
     capsys.readouterr()
     assert main(args) == 0  # again: every stage is skipped, the report rebuilt
     assert "train: done before, skipped" in capsys.readouterr().out
+
+
+def test_redo_moves_a_stages_outputs_aside_and_runs_it_again(tmp_path, monkeypatch) -> None:
+    logs: list[str] = []
+    repro = Reproduction(narrow(plan_for("bandit"), ["bandit-s2-hand"], ["agg"]), tmp_path, log=logs.append)
+    items = repro.stage_items("zeroshot")
+    names = [i.split(" seeds=")[0] for i in items]
+    assert names == ["bandit-s2-hand__modular-lam0.5", "bandit-s2-hand__no_task_logits"]
+    for n in [*names, "bandit-s1-hand__modular-lam0.5"]:  # the last is outside the plan: left alone
+        (tmp_path / "zeroshot").mkdir(exist_ok=True)
+        (tmp_path / "zeroshot" / f"{n}.csv").write_text(f"old {n}\n")
+        (tmp_path / "runs" / f"zeroshot-{n}").mkdir(parents=True)
+    other = "bandit-s1-hand__modular-lam0.5 seeds=0,1,2"
+    (tmp_path / "zeroshot.done").write_text("\n".join(["42.0 s", *items, other]) + "\n")
+
+    moved = repro.redo("zeroshot")
+    assert len(moved) == 4 and all("superseded" in p.parts and p.exists() for p in moved)
+    assert {p.name for p in moved} == {*(f"{n}.csv" for n in names), *(f"zeroshot-{n}" for n in names)}
+    assert moved[0].read_text() == f"old {names[0]}\n"  # kept, not deleted
+    assert [p.name for p in (tmp_path / "zeroshot").iterdir()] == ["bandit-s1-hand__modular-lam0.5.csv"]
+    assert read_marker(tmp_path / "zeroshot.done") == (42.0, [other])
+
+    calls: list[str] = []
+    monkeypatch.setattr(Reproduction, "stages", lambda self: [("zeroshot", lambda: calls.append("zeroshot"))])
+    repro.run()
+    assert calls == ["zeroshot"] and set(read_marker(tmp_path / "zeroshot.done")[1]) == {other, *items}
+    with pytest.raises(ValueError, match=r"--redo: expected one of \['adapt', 'marginals', 'zeroshot'\], got 'train'"):
+        repro.redo("train")
