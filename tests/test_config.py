@@ -68,7 +68,7 @@ def test_set_overrides_and_their_errors(tmp_path) -> None:
 
 
 @pytest.mark.parametrize(("schema", "key"), [(config.ExperimentConfig, "ppo.entropy_coeff"), (config.ZeroShotConfig, "task_entropy")])
-def test_entropy_schedules_are_checked(tmp_path, schema, key) -> None:
+def test_entropy_schedules_are_checked(schema, key) -> None:
     base = {"population": "p"} if schema is config.ExperimentConfig else {"runs": ["r"]}
     good = config.from_dict(base, [f"{key}=[[0, 0.05], [200000, 0.0]]"], schema=schema)
     assert config.validate(good, schema=schema)

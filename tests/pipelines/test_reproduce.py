@@ -103,8 +103,8 @@ def test_redo_moves_a_stages_outputs_aside_and_runs_it_again(tmp_path, monkeypat
     items = repro.stage_items("zeroshot")
     names = [i.split(" seeds=")[0] for i in items]
     assert names == ["bandit-s2-hand__modular-lam0.5", "bandit-s2-hand__no_task_logits"]
+    (tmp_path / "zeroshot").mkdir()
     for n in [*names, "bandit-s1-hand__modular-lam0.5"]:  # the last is outside the plan: left alone
-        (tmp_path / "zeroshot").mkdir(exist_ok=True)
         (tmp_path / "zeroshot" / f"{n}.csv").write_text(f"old {n}\n")
         (tmp_path / "runs" / f"zeroshot-{n}").mkdir(parents=True)
     other = "bandit-s1-hand__modular-lam0.5 seeds=0,1,2"
