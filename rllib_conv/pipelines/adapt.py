@@ -32,6 +32,7 @@ from rllib_conv.pipelines.train import CONFIG_FILE, head_for
 from rllib_conv.pipelines.tuning import fit
 
 PAIR_KEY = "adapt_pair"
+TUNE_PREFIX = "adapt-"  # the Tune experiment of adaptation `name` is `adapt-<name>`
 STEPS_FILE = "adapt_steps.json"
 CURVE_COLUMNS = ["run", "method", "lam", "z_dim", "seed", "partner", "steps", "mean_return", "stderr", "exact_return"]
 
@@ -159,7 +160,7 @@ def run_adaptation(raw: dict[str, Any], out: str | Path = "adaptation", storage:
     for pair in pairs:
         adapt_setup(AdaptConfig.model_validate({**raw, **pair}))  # wrong game, missing weights: fail early
     # One trial per (run, partner) pair; Tune grids cannot zip two axes, so the pair is one value.
-    results = fit(AdaptTrainable, raw, {**raw, PAIR_KEY: tune.grid_search(pairs)}, f"adapt-{cfg.name}", storage, address)
+    results = fit(AdaptTrainable, raw, {**raw, PAIR_KEY: tune.grid_search(pairs)}, f"{TUNE_PREFIX}{cfg.name}", storage, address)
     frames = [r.metrics_dataframe[CURVE_COLUMNS] for r in results if r.metrics_dataframe is not None and not r.error]
     curves = pd.concat(frames, ignore_index=True).sort_values(["run", "partner", "steps"]) if frames else pd.DataFrame(columns=CURVE_COLUMNS)
     out = Path(out)

@@ -39,11 +39,11 @@ import pandas as pd
 from analysis.loaders import split_experiment
 from rllib_conv import config, partners
 from rllib_conv.config import SelfPlayConfig
-from rllib_conv.pipelines.adapt import run_adaptation, trial_folders
+from rllib_conv.pipelines.adapt import TUNE_PREFIX as ADAPT_PREFIX, run_adaptation, trial_folders
 from rllib_conv.pipelines.marginals import marginal_report
 from rllib_conv.pipelines.selfplay import train_population
 from rllib_conv.pipelines.train import CONFIG_FILE, run
-from rllib_conv.pipelines.zeroshot import run_zeroshot
+from rllib_conv.pipelines.zeroshot import TUNE_PREFIX as ZEROSHOT_PREFIX, run_zeroshot
 
 GAMES = ("bandit", "blocks", "hanabi")
 CONFIGS = Path(__file__).resolve().parents[2] / "tune_configs"
@@ -178,7 +178,7 @@ def narrow(plan: Plan, populations: list[str] | None = None, methods: list[str] 
 
 # Stages `redo` can run again: where each experiment's CSV and Tune folder live. Training and
 # self-play feed every later stage, so redoing those means a fresh output folder.
-REDO_OUTPUTS = {"adapt": ("adaptation", "adapt-"), "zeroshot": ("zeroshot", "zeroshot-"), "marginals": None}
+REDO_OUTPUTS = {"adapt": ("adaptation", ADAPT_PREFIX), "zeroshot": ("zeroshot", ZEROSHOT_PREFIX), "marginals": None}
 
 
 def _merge(base: dict[str, Any], extra: dict[str, Any]) -> dict[str, Any]:
@@ -302,8 +302,7 @@ class Reproduction:
             outputs = [self.root / "marginals.csv"]
         else:
             folder, prefix = REDO_OUTPUTS[stage]
-            names = [item.split(" seeds=")[0] for item in items]
-            outputs = [p for n in names for p in (self.root / folder / f"{n}.csv", self.runs / f"{prefix}{n}")]
+            outputs = [p for n in self.stage_experiments(stage) for p in (self.root / folder / f"{n}.csv", self.runs / f"{prefix}{n}")]
         dest = self.root / "superseded" / time.strftime("%Y%m%d-%H%M%S")
         moved = []
         for path in outputs:
@@ -318,19 +317,22 @@ class Reproduction:
         self.log(f"[{self.plan.game}] {stage}: {len(moved)} output(s) moved to {dest}, to be redone")
         return moved
 
-    def stage_items(self, stage: str) -> list[str]:
-        """What stage `stage` of this plan produces, one line per experiment (with the seeds), for its marker."""
-        seeds = f" seeds={','.join(map(str, self.plan.seeds))}"
+    def stage_experiments(self, stage: str) -> list[str]:
+        """The experiments stage `stage` of this plan produces, by name."""
         trained = [self.experiment(p, m)["name"] for p, ms in self.populations().items() for m in ms]
         zeroshot = [self.experiment(p, m)["name"] for p in self.plan.zeroshot_populations for m in ZEROSHOT_METHODS]
-        names = {
+        return {
             "selfplay": [sp["name"] for sp in self.plan.selfplay],
             "train": trained,
             "adapt": [*trained, *(f"{Path(p).name}__scratch" for p in self.populations())],
             "zeroshot": zeroshot,
             "marginals": sorted(n for n in {*trained, *zeroshot} if self.has_marginals(n)),
         }[stage]
-        return [name + seeds for name in names]
+
+    def stage_items(self, stage: str) -> list[str]:
+        """What stage `stage` of this plan produces, one line per experiment (with the seeds), for its marker."""
+        seeds = f" seeds={','.join(map(str, self.plan.seeds))}"
+        return [name + seeds for name in self.stage_experiments(stage)]
 
 
 def read_marker(marker: Path) -> tuple[float, list[str]]:

@@ -34,6 +34,7 @@ from rllib_conv.pipelines.train import CONFIG_FILE
 from rllib_conv.pipelines.tuning import fit
 
 COMPOSABLE_METHODS = ("modular", "no_task_logits", "oracle")
+TUNE_PREFIX = "zeroshot-"  # the Tune experiment of zero-shot `name` is `zeroshot-<name>`
 RESULT_COLUMNS = ["run", "method", "lam", "seed", "partner", "mean_return", "stderr", "exact_return"]
 
 
@@ -153,7 +154,7 @@ def run_zeroshot(raw: dict[str, Any], out: str | Path = "zeroshot", storage: str
         ZeroShotTrainable,
         raw,
         {**raw, "run": tune.grid_search(trials)},
-        f"zeroshot-{cfg.name}",
+        f"{TUNE_PREFIX}{cfg.name}",
         storage,
         address,
         tune.CheckpointConfig(checkpoint_at_end=False),
