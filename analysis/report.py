@@ -213,6 +213,17 @@ class Context:
 # --- sections ------------------------------------------------------------------------------------------
 
 
+def _trained_steps(curves: pd.DataFrame) -> str:
+    """The env steps the trials of `curves` trained for: one number, or the range over trials."""
+    if curves.empty or "steps" not in curves:
+        return "—"
+    last = curves.groupby("run")["steps"].max().dropna()
+    if last.empty:
+        return "—"
+    low, high = int(last.min()), int(last.max())
+    return f"{low:,}" if low == high else f"{low:,}–{high:,}"
+
+
 def _status_section(ctx: Context) -> str:
     lines = ["## What was found", ""]
     if not ctx.games:
@@ -225,11 +236,12 @@ def _status_section(ctx: Context) -> str:
         st = ctx.stages[ctx.stages["game"] == game]
         done = [f"{r.stage} ({r.seconds:.0f} s)" for r in st.itertuples() if r.done]
         missing = [r.stage for r in st.itertuples() if r.expected and not r.done]
-        trials = ctx.training[ctx.training["game"] == game]["run"].nunique() if not ctx.training.empty else 0
-        rows.append([game, f"`{game_dir}`", plan.get("seeds", "?"), "yes" if plan.get("quick") else "no", ", ".join(done) or "none", ", ".join(missing) or "none", trials])
+        curves = ctx.training[ctx.training["game"] == game] if not ctx.training.empty else ctx.training
+        trials = curves["run"].nunique() if not curves.empty else 0
+        rows.append([game, f"`{game_dir}`", plan.get("seeds", "?"), "yes" if plan.get("quick") else "no", ", ".join(done) or "none", ", ".join(missing) or "none", trials, _trained_steps(curves)])
         if missing:
             ctx.notes.append(f"{game}: stage(s) not finished: {', '.join(missing)} (their results are partial or absent below)")
-    lines.append(md_table(["game", "folder", "seeds", "quick", "stages done (wall time)", "stages not done", "trained-ego trials with logs"], rows))
+    lines.append(md_table(["game", "folder", "seeds", "quick", "stages done (wall time)", "stages not done", "trained-ego trials with logs", "env steps per ego"], rows))
     for game in loaders.MAX_SCORE:
         if game not in ctx.plans:
             ctx.notes.append(f"{game}: no folder under the root; its figures and numbers are skipped")

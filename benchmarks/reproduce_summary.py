@@ -1,9 +1,10 @@
 """The paper's headline numbers from a `rllib-conv reproduce` folder, with 95% intervals, as one table and JSON.
 
-Reads only files (through `analysis.loaders`): per population and method the adaptation
-AUC (mean return over the evaluation points, per (seed, test partner) curve), on the bandit
-beside the Bayes-optimal adapter's AUC at the same points (`analysis.summaries.
-bayes_optimal_return`); the zero-shot return per method; the marginal distance per method.
+Reads only files (through `analysis.loaders`): per population and method the env steps
+its egos trained for; the adaptation AUC (mean return over the evaluation points, per
+(seed, test partner) curve), on the bandit beside the Bayes-optimal adapter's AUC at the
+same points (`analysis.summaries.bayes_optimal_return`); the zero-shot return; the
+marginal distance.
 Writes `benchmarks/results/reproduce_<name>.json` with the reproduce command recorded in
 the folder's plan.json.
 
@@ -41,8 +42,13 @@ def _bayes_auc(population: str, steps: list[int]) -> float | None:
 
 
 def summary(root: Path) -> dict:
-    """Adaptation AUC (with the Bayes-optimal gap), zero-shot and marginals per population and method."""
-    out: dict = {"adaptation": [], "zeroshot": [], "marginals": []}
+    """Env steps each ego trained for, adaptation AUC (with the Bayes-optimal gap), zero-shot and marginals per population and method."""
+    out: dict = {"training": [], "adaptation": [], "zeroshot": [], "marginals": []}
+    training = loaders.load_training(root)
+    if not training.empty:
+        last = training.groupby(["population", "label", "run"])["steps"].max()
+        for (population, label), steps in last.groupby(["population", "label"]):
+            out["training"].append({"population": population, "method": label, "env_steps": sorted(int(s) for s in steps.unique())})
     curves = loaders.load_adaptation(root)
     if not curves.empty:
         aucs = adaptation_auc(curves)

@@ -169,7 +169,7 @@ def _cmd_play(args: argparse.Namespace) -> None:
 def _cmd_reproduce(args: argparse.Namespace) -> None:
     from rllib_conv.pipelines.reproduce import reproduce, stage_table
 
-    reproduce(args.game, out=args.out, seeds=args.seeds, quick=args.quick, address=args.address, populations=args.populations, methods=args.methods, redo=args.redo)
+    reproduce(args.game, out=args.out, seeds=args.seeds, quick=args.quick, address=args.address, populations=args.populations, methods=args.methods, redo=args.redo, train_steps=args.train_steps)
     print(stage_table(args.out).to_string(index=False))
 
 
@@ -259,6 +259,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--redo", choices=["adapt", "zeroshot", "marginals"],
         help="run this finished stage again for the plan's experiments; their old outputs move to <out>/<game>/superseded/",
+    )
+    p.add_argument(
+        "--train-steps", type=int, default=None, metavar="N",
+        help="env steps each ego trains for (default: the paper's, e.g. blocks 1000000); a folder trained with another budget is refused",
     )
     p.add_argument("--address", default=None, help="Ray cluster address; default: $RAY_ADDRESS or a local Ray")
     p.set_defaults(func=_cmd_reproduce)

@@ -18,6 +18,10 @@ and inside it every finished experiment is skipped and an interrupted one contin
 Tune experiment resumes). `quick` shrinks everything (1 seed, few partners, short runs) for
 the demo and the tests.
 
+Egos train for the paper's budget (blocks: 1M env steps). `train_steps` (`--train-steps`)
+sets another; the train marker names each experiment's budget, so a folder trained with a
+different one is not taken as done, and `fit` then refuses to mix the two.
+
 `redo` (`--redo adapt|zeroshot|marginals`) runs a finished stage again for the plan's
 experiments, after a default or the code changed: their outputs (CSV and Tune folder) move
 to `superseded/<time>/` under the game folder, never deleted, and the marker stops
@@ -38,12 +42,14 @@ import pandas as pd
 
 from analysis.loaders import split_experiment
 from rllib_conv import config, partners
-from rllib_conv.config import SelfPlayConfig
-from rllib_conv.pipelines.adapt import TUNE_PREFIX as ADAPT_PREFIX, run_adaptation, trial_folders
+from rllib_conv.config import GAME_DEFAULTS, SelfPlayConfig
+from rllib_conv.pipelines.adapt import TUNE_PREFIX as ADAPT_PREFIX
+from rllib_conv.pipelines.adapt import run_adaptation, trial_folders
 from rllib_conv.pipelines.marginals import marginal_report
 from rllib_conv.pipelines.selfplay import train_population
 from rllib_conv.pipelines.train import CONFIG_FILE, run
-from rllib_conv.pipelines.zeroshot import TUNE_PREFIX as ZEROSHOT_PREFIX, run_zeroshot
+from rllib_conv.pipelines.zeroshot import TUNE_PREFIX as ZEROSHOT_PREFIX
+from rllib_conv.pipelines.zeroshot import run_zeroshot
 
 GAMES = ("bandit", "blocks", "hanabi")
 CONFIGS = Path(__file__).resolve().parents[2] / "tune_configs"
@@ -100,14 +106,28 @@ class Plan:
     no_marginals: list[str] = field(default_factory=list)
     adapt_partners: int | None = None  # test partners per population (None: all)
     train_overrides: dict[str, Any] = field(default_factory=dict)
+    train_steps: int | None = None  # every ego's training env steps, over any default or override (None: keep them)
     adapt_overrides: dict[str, Any] = field(default_factory=dict)
     zeroshot_overrides: dict[str, Any] = field(default_factory=dict)
 
 
-def plan_for(game: str, seeds: int = 3, quick: bool = False) -> Plan:
-    """The paper's experiments for `game` (or a small version with `quick`)."""
+def plan_for(game: str, seeds: int = 3, quick: bool = False, train_steps: int | None = None) -> Plan:
+    """The paper's experiments for `game` (or a small version with `quick`).
+
+    Egos train for the paper's budget (`GAME_DEFAULTS`) unless `train_steps` sets another.
+    """
     if game not in GAMES:
         raise ValueError(f"game must be one of {', '.join(GAMES)} (or all), got {game!r}")
+    if seeds < 1:
+        raise ValueError(f"--seeds: expected at least 1 seed per method, got {seeds}")
+    if train_steps is not None and train_steps < 1:
+        raise ValueError(f"--train-steps: expected a positive number of env steps, got {train_steps}")
+    plan = _plan(game, seeds, quick)
+    plan.train_steps = train_steps
+    return plan
+
+
+def _plan(game: str, seeds: int, quick: bool) -> Plan:
     if quick:
         quick_train = {"run": {"timesteps": 2048}} if game == "bandit" else {"run": {"timesteps": 4000}, "ppo": {"rollout_per_partner": 400, "minibatch_size": 100}}
         quick_methods = [MODULAR_05, Method("agg", {"method": "agg"})]
@@ -146,7 +166,6 @@ def plan_for(game: str, seeds: int = 3, quick: bool = False) -> Plan:
             selfplay=[{"name": "blocks-selfplay"}],
             zeroshot_populations=["blocks-perm"],
             adapt_partners=6,
-            train_overrides={"run": {"timesteps": 300_000}},
         )
     return Plan(game=game, seeds=seed_list, populations={}, selfplay=[{"name": "hanabi-selfplay"}], selfplay_methods=HANABI_METHODS, adapt_partners=4)
 
@@ -209,7 +228,12 @@ class Reproduction:
             "seed": {"grid_search": self.plan.seeds},
             **method.settings,
         }
-        return _merge(_merge(raw, self.plan.train_overrides), self.plan.population_overrides.get(population, {}))
+        raw = _merge(_merge(raw, self.plan.train_overrides), self.plan.population_overrides.get(population, {}))
+        return raw if self.plan.train_steps is None else _merge(raw, {"run": {"timesteps": self.plan.train_steps}})
+
+    def train_steps(self, population: str, method: Method) -> int:
+        """The env steps one ego of this population and method trains for."""
+        return self.experiment(population, method).get("run", {}).get("timesteps") or GAME_DEFAULTS[self.plan.game]["timesteps"]
 
     def stage_selfplay(self) -> None:
         for overrides in self.plan.selfplay:
@@ -220,12 +244,15 @@ class Reproduction:
             _, report = train_population(raw, out=self.root / "populations", storage=self.runs, address=self.address)
             self.log(f"self-play {overrides['name']}: {int(report['passed'].sum())}/{len(report)} pairs passed the gate")
 
+    def trained(self) -> list[tuple[str, Method]]:
+        """Every (population, method) whose egos this plan trains."""
+        return [(p, m) for p, ms in self.populations().items() for m in ms]
+
     def stage_train(self) -> None:
-        for population, methods in self.populations().items():
-            for method in methods:
-                results = run(config.from_dict(self.experiment(population, method)), storage=self.runs, address=self.address)
-                if results.errors:
-                    raise RuntimeError(f"training {Path(population).name} / {method.label}: {len(results.errors)} trial(s) failed")
+        for population, method in self.trained():
+            results = run(config.from_dict(self.experiment(population, method)), storage=self.runs, address=self.address)
+            if results.errors:
+                raise RuntimeError(f"training {Path(population).name} / {method.label}: {len(results.errors)} trial(s) failed")
 
     def stage_adapt(self) -> None:
         for population, methods in self.populations().items():
@@ -274,7 +301,8 @@ class Reproduction:
     def run(self) -> dict[str, float]:
         """Run every unfinished stage; return the wall time of each stage run now."""
         self.root.mkdir(parents=True, exist_ok=True)
-        (self.root / "plan.json").write_text(json.dumps({"game": self.plan.game, "seeds": self.plan.seeds, "quick": self.plan.adapt_partners == 1}, indent=2))
+        plan = {"game": self.plan.game, "seeds": self.plan.seeds, "quick": self.plan.adapt_partners == 1, "train_steps": self.plan.train_steps}
+        (self.root / "plan.json").write_text(json.dumps(plan, indent=2))
         times = {}
         for name, stage in self.stages():
             marker = self.root / f"{name}.done"
@@ -319,7 +347,7 @@ class Reproduction:
 
     def stage_experiments(self, stage: str) -> list[str]:
         """The experiments stage `stage` of this plan produces, by name."""
-        trained = [self.experiment(p, m)["name"] for p, ms in self.populations().items() for m in ms]
+        trained = [self.experiment(p, m)["name"] for p, m in self.trained()]
         zeroshot = [self.experiment(p, m)["name"] for p in self.plan.zeroshot_populations for m in ZEROSHOT_METHODS]
         return {
             "selfplay": [sp["name"] for sp in self.plan.selfplay],
@@ -330,8 +358,14 @@ class Reproduction:
         }[stage]
 
     def stage_items(self, stage: str) -> list[str]:
-        """What stage `stage` of this plan produces, one line per experiment (with the seeds), for its marker."""
+        """What stage `stage` of this plan produces, one line per experiment (with the seeds), for its marker.
+
+        Training items also name the egos' env steps: with another budget the stage runs
+        again, and `fit` refuses to continue a folder trained for a different one.
+        """
         seeds = f" seeds={','.join(map(str, self.plan.seeds))}"
+        if stage == "train":
+            return [f"{self.experiment(p, m)['name']}{seeds} steps={self.train_steps(p, m)}" for p, m in self.trained()]
         return [name + seeds for name in self.stage_experiments(stage)]
 
 
@@ -360,16 +394,18 @@ def reproduce(
     populations: list[str] | None = None,
     methods: list[str] | None = None,
     redo: str | None = None,
+    train_steps: int | None = None,
 ) -> dict[str, dict[str, float]]:
     """Run `game` (or `all`), optionally `narrow`ed, then build `<out>/report/report.md` over every game under `out`.
 
-    `redo` names a finished stage to run again for the plan's experiments (see `Reproduction.redo`).
+    `redo` names a finished stage to run again for the plan's experiments (see `Reproduction.redo`);
+    `train_steps` replaces every ego's training budget (see `plan_for`).
     Returns the stage wall times per game.
     """
     from analysis.report import build_report
 
     games = GAMES if game == "all" else (game,)
-    plans = [narrow(plan_for(g, seeds, quick), populations, methods) for g in games]  # validate every game before running any
+    plans = [narrow(plan_for(g, seeds, quick, train_steps), populations, methods) for g in games]  # validate every game before running any
     times = {}
     for plan in plans:
         repro = Reproduction(plan, Path(out) / plan.game, address)

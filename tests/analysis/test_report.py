@@ -5,9 +5,10 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+import pandas as pd
 import pytest
 
-from analysis.report import _better, _verdict, build_report
+from analysis.report import _better, _trained_steps, _verdict, build_report
 
 FIXTURE = Path(__file__).parent / "fixtures" / "repro"
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
@@ -31,6 +32,14 @@ def test_report_and_every_linked_figure_exist(report: Path, text: str) -> None:
         png = report.parent / link
         assert png.read_bytes()[:8] == PNG_MAGIC
         assert png.with_suffix(".pdf").is_file()
+
+
+def test_status_names_the_env_steps_each_ego_trained_for(text: str) -> None:
+    # The fixture's 4 trials each end their progress.csv at 2048 env steps.
+    assert "| none | 4 | 2,048 |" in text
+    curves = pd.DataFrame({"run": ["a", "a", "b", "b"], "steps": [0, 301_440, 0, 1_000_320]})
+    assert _trained_steps(curves) == "301,440–1,000,320"
+    assert _trained_steps(curves.iloc[:0]) == "—"
 
 
 def test_zeroshot_numbers_and_flags(text: str) -> None:

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import json
+
 import pandas as pd
 import pytest
 
 from rllib_conv.cli import main
-from rllib_conv.pipelines.reproduce import Reproduction, narrow, plan_for, read_marker
+from rllib_conv.pipelines.reproduce import MODULAR_05, Reproduction, narrow, plan_for, read_marker
 from rllib_conv.pipelines.train import CONFIG_FILE
 
 
@@ -43,17 +45,51 @@ def test_a_stage_reruns_only_when_the_plan_asks_for_more_than_its_marker_covers(
     narrowed = narrow(plan_for("bandit"), ["bandit-s2-hand"], ["agg"])
     Reproduction(narrowed, tmp_path, log=logs.append).run()
     seconds, covered = read_marker(tmp_path / "train.done")
-    assert covered == ["bandit-s2-hand__modular-lam0.5 seeds=0,1,2", "bandit-s2-hand__agg seeds=0,1,2"] and seconds >= 0
+    assert covered == ["bandit-s2-hand__modular-lam0.5 seeds=0,1,2 steps=10000", "bandit-s2-hand__agg seeds=0,1,2 steps=10000"] and seconds >= 0
 
     Reproduction(narrow(plan_for("bandit"), ["bandit-s2-hand"], ["agg"]), tmp_path, log=logs.append).run()
     assert len(calls) == 1 and logs[-1] == "[bandit] train: done before, skipped"
 
     Reproduction(narrow(plan_for("bandit"), ["bandit-s2-hand"], ["maml"]), tmp_path, log=logs.append).run()
-    assert len(calls) == 2 and "not covered before: bandit-s2-hand__maml seeds=0,1,2)" in logs[-2]
-    assert read_marker(tmp_path / "train.done")[1][-1] == "bandit-s2-hand__maml seeds=0,1,2"
+    assert len(calls) == 2 and "not covered before: bandit-s2-hand__maml seeds=0,1,2 steps=10000)" in logs[-2]
+    assert read_marker(tmp_path / "train.done")[1][-1] == "bandit-s2-hand__maml seeds=0,1,2 steps=10000"
 
     Reproduction(narrow(plan_for("bandit", seeds=4), ["bandit-s2-hand"], ["agg"]), tmp_path, log=logs.append).run()
     assert len(calls) == 3  # a fourth seed is more than the marker covers
+
+
+def test_egos_train_for_the_papers_budget_unless_train_steps_sets_another(tmp_path, monkeypatch) -> None:
+    default = Reproduction(narrow(plan_for("blocks"), ["blocks-perm"], ["agg"]), tmp_path)
+    assert "run" not in default.experiment("blocks-perm", MODULAR_05)  # the config default: the paper's 1M steps
+    assert default.stage_items("train") == [f"blocks-perm__{m} seeds=0,1,2 steps=1000000" for m in ("modular-lam0.5", "agg")]
+
+    bandit = Reproduction(narrow(plan_for("bandit"), ["bandit-s2-hand", "bandit-user-study"], ["agg"]), tmp_path)
+    assert [i.rsplit(" ", 1)[1] for i in bandit.stage_items("train")] == ["steps=10000"] * 2 + ["steps=40000"] * 2  # the user-study override
+
+    short = Reproduction(narrow(plan_for("bandit", train_steps=500), ["bandit-s2-hand", "bandit-user-study"], ["agg"]), tmp_path)
+    assert all(short.experiment(p, m)["run"]["timesteps"] == 500 for p, m in short.trained())  # over the population override too
+    assert short.experiment("bandit-user-study", MODULAR_05)["ppo"] == {"rollout_per_partner": 16}  # the rest of it kept
+
+    # A folder trained with one budget is not done for another: the train stage runs again.
+    calls: list[str] = []
+    _train_only(monkeypatch, calls)
+    Reproduction(narrow(plan_for("bandit", train_steps=500), ["bandit-s2-hand"], ["agg"]), tmp_path, log=lambda _: None).run()
+    Reproduction(narrow(plan_for("bandit"), ["bandit-s2-hand"], ["agg"]), tmp_path, log=lambda _: None).run()
+    assert calls == ["bandit", "bandit"]
+    assert json.loads((tmp_path / "plan.json").read_text())["train_steps"] is None
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--train-steps", "0"], "--train-steps: expected a positive number of env steps, got 0"),
+        (["--seeds", "0"], "--seeds: expected at least 1 seed per method, got 0"),
+    ],
+)
+def test_reproduce_rejects_bad_budgets_before_running_anything(tmp_path, capsys, args, message) -> None:
+    assert main(["reproduce", "bandit", "--out", str(tmp_path / "out"), *args]) == 2
+    assert message in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
 
 
 def test_a_marker_without_items_covers_nothing(tmp_path, monkeypatch) -> None:
