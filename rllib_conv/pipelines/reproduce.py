@@ -231,9 +231,9 @@ class Reproduction:
         raw = _merge(_merge(raw, self.plan.train_overrides), self.plan.population_overrides.get(population, {}))
         return raw if self.plan.train_steps is None else _merge(raw, {"run": {"timesteps": self.plan.train_steps}})
 
-    def train_steps(self, population: str, method: Method) -> int:
-        """The env steps one ego of this population and method trains for."""
-        return self.experiment(population, method).get("run", {}).get("timesteps") or GAME_DEFAULTS[self.plan.game]["timesteps"]
+    def train_steps(self, experiment: dict[str, Any]) -> int:
+        """The env steps each ego of `experiment` (an `experiment(...)` dict) trains for."""
+        return experiment.get("run", {}).get("timesteps") or GAME_DEFAULTS[self.plan.game]["timesteps"]
 
     def stage_selfplay(self) -> None:
         for overrides in self.plan.selfplay:
@@ -365,7 +365,8 @@ class Reproduction:
         """
         seeds = f" seeds={','.join(map(str, self.plan.seeds))}"
         if stage == "train":
-            return [f"{self.experiment(p, m)['name']}{seeds} steps={self.train_steps(p, m)}" for p, m in self.trained()]
+            experiments = [self.experiment(p, m) for p, m in self.trained()]
+            return [f"{e['name']}{seeds} steps={self.train_steps(e)}" for e in experiments]
         return [name + seeds for name in self.stage_experiments(stage)]
 
 
