@@ -61,6 +61,7 @@ LABEL_NAMES: dict[str, str] = {
     "modular-lam0": "ours λ=0.0",
     "modular-lam0.3": "ours λ=0.3",
     "modular-lam0.5": "ours λ=0.5",
+    "modular-lam0.5-hl0.01": "ours λ=0.5 + head penalty",
     "lowz-lam0.5": "ours λ=0.5, low-dim z",
     "agg": "BaselineAgg",
     "no_task_logits": "BaselineModular",

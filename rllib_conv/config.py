@@ -140,6 +140,8 @@ class ExperimentConfig(_Strict):
     freeze: list[str] = Field(default_factory=list)
     # Learning-rate multiplier for the task module's z layers (0 freezes them, 1 is plain PPO).
     z_lr_scale: float = Field(1.0, ge=0.0)
+    # Weight of the head penalty (not in the paper; see MarginalPPOLearner): heads carry conventions only.
+    head_l2: float = Field(0.0, ge=0.0)
     seed: int = 0
     model: ModelSettings = Field(default_factory=ModelSettings)
     ppo: PPOSettings = Field(default_factory=PPOSettings)
@@ -150,6 +152,8 @@ class ExperimentConfig(_Strict):
     def _consistent(self) -> "ExperimentConfig":
         if self.method in ("no_task_logits", "oracle", "maml") and self.lam > 0:
             raise ValueError(f"lam must be 0 for method {self.method!r} (it has no learned task logits to regularise)")
+        if self.method != "modular" and self.head_l2 > 0:
+            raise ValueError(f"head_l2 must be 0 for method {self.method!r} (only modular heads sit on task logits that can take over)")
         return self
 
     def resolve(self, game: str) -> "ExperimentConfig":

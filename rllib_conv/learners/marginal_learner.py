@@ -15,6 +15,17 @@ without gradients). Settings come from `config.learners(learner_config_dict=...)
 - `adam_eps` (float, default 1e-5, the paper's code): Adam's epsilon.
 - `z_lr_scale` (float, default 1): the task module's z layers (its policy tower) learn at
   `lr * z_lr_scale` through an optimizer of their own; 0 freezes them.
+- `head_l2` (float, default 0; not in the paper): weight of the head penalty
+
+      H = mean_{i,s} sum_a (h_i(a|s) - mean_b h_i(b|s))^2
+
+  on every ego head's own output h_i (before the task logits are added; centred, since
+  a constant shift leaves the policy unchanged; illegal actions count too, their outputs
+  never reach the policy). Where the task module alone already
+  plays the partners' common response (the rules), PPO leaves heads and task module
+  free to split the logits any way; H makes the task module carry them, so a head
+  holds only what differs between partners (the conventions), and a frozen head stays
+  out of the way when the task module is re-trained on a new task. H is always logged.
 """
 
 from __future__ import annotations
@@ -27,16 +38,23 @@ from ray.rllib.core import ALL_MODULES
 from ray.rllib.core.learner.learner import DEFAULT_OPTIMIZER
 
 from rllib_conv.learners.drop_bootstrap_rows import DropBootstrapRows
-from rllib_conv.modules.multi import ALL_HEAD_LOGITS, TASK_ID
+from rllib_conv.modules.multi import ALL_HEAD_LOGITS, ALL_HEAD_OUTPUTS, TASK_ID
 from rllib_conv.modules.partner_head import TASK_LOGITS, PartnerHeadModule
 
 MARGINAL_REG_KEY = "marginal_reg"
+HEAD_L2_KEY = "head_l2"
 
 
 def marginal_distance(task_logits: torch.Tensor, head_logits: list[torch.Tensor]) -> torch.Tensor:
     """Return mean over rows of sum_a |softmax(task) - mean_i softmax(head_i)|; logits are [B, A]."""
     mean_policy = torch.stack([torch.softmax(h, dim=-1) for h in head_logits]).mean(dim=0)
     return (torch.softmax(task_logits, dim=-1) - mean_policy).abs().sum(dim=-1).mean()
+
+
+def head_size(head_outputs: torch.Tensor) -> torch.Tensor:
+    """Return mean over heads and rows of sum_a (h(a) - mean_b h(b))^2 for head outputs [H, B, A]."""
+    centred = head_outputs - head_outputs.mean(dim=-1, keepdim=True)
+    return centred.pow(2).sum(dim=-1).mean()
 
 
 class MarginalPPOLearner(PPOTorchLearner):
@@ -52,6 +70,11 @@ class MarginalPPOLearner(PPOTorchLearner):
     def lam(self) -> float:
         """The regulariser weight from `learner_config_dict["lam"]`."""
         return float(self.config.learner_config_dict.get("lam", 0.0))
+
+    @property
+    def head_l2(self) -> float:
+        """The head penalty's weight from `learner_config_dict["head_l2"]`."""
+        return float(self.config.learner_config_dict.get("head_l2", 0.0))
 
     def frozen_module_ids(self) -> set[str]:
         """Module IDs whose weights must not change (expands the groups "task" and "heads")."""
@@ -100,7 +123,12 @@ class MarginalPPOLearner(PPOTorchLearner):
             return losses
         with torch.set_grad_enabled(self.lam > 0 and torch.is_grad_enabled()):
             reg = marginal_distance(shared[TASK_LOGITS], list(shared[ALL_HEAD_LOGITS]))
+        with torch.set_grad_enabled(self.head_l2 > 0 and torch.is_grad_enabled()):
+            size = head_size(shared[ALL_HEAD_OUTPUTS])
         self.metrics.log_value((ALL_MODULES, MARGINAL_REG_KEY), reg.detach(), reduce="mean")
+        self.metrics.log_value((ALL_MODULES, HEAD_L2_KEY), size.detach(), reduce="mean")
         if self.lam > 0:
             losses[MARGINAL_REG_KEY] = self.lam * reg
+        if self.head_l2 > 0:
+            losses[HEAD_L2_KEY] = self.head_l2 * size
         return losses

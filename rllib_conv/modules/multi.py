@@ -24,6 +24,8 @@ from rllib_conv.modules.task_module import TaskModule, split_obs
 TASK_ID = "task"
 # fwd_out[TASK_ID] in training: every head's logits on every ego state of the minibatch.
 ALL_HEAD_LOGITS = "all_head_logits"
+# fwd_out[TASK_ID] in training: every head's own output (before the task logits are added).
+ALL_HEAD_OUTPUTS = "all_head_outputs"
 AGG_HEAD_ID = "ego"
 EGO_PREFIX = "ego@"
 PARTNER_PREFIX = "partner@"
@@ -61,7 +63,8 @@ class ConventionMultiRLModule(MultiRLModule):
 
         Equivalent to each head's own `forward_train`, but one task forward replaces one
         per head, and the [heads, rows, actions] logits the marginal regulariser needs
-        (returned under `fwd_out[TASK_ID][ALL_HEAD_LOGITS]`) come for free.
+        (returned under `fwd_out[TASK_ID][ALL_HEAD_LOGITS]`, with the heads' own outputs
+        under `ALL_HEAD_OUTPUTS` for the head penalty) come for free.
         """
         head_ids = [mid for mid in batch if isinstance(self._rl_modules.get(mid), PartnerHeadModule)]
         out = {mid: self._rl_modules[mid].forward_train(batch[mid], **kwargs) for mid in batch if mid in self and mid not in head_ids}
@@ -73,18 +76,20 @@ class ConventionMultiRLModule(MultiRLModule):
         mask = None if any(m is None for _, m in parts) else torch.cat([m for _, m in parts])
         z, task_logits = self.task.policy(obs, mask)
         task_value = self.task.value(obs)
-        heads = self.head_ids()
-        all_logits = torch.stack([self._rl_modules[h].logits(z, task_logits, mask) for h in heads])
+        order = self.head_ids()
+        heads = [self._rl_modules[h] for h in order]
+        outputs = torch.stack([h.pi(z) for h in heads])
+        all_logits = torch.stack([h.combine(o, task_logits, mask) for h, o in zip(heads, outputs)])
         start = 0
         for mid, n in zip(head_ids, sizes):
             rows = slice(start, start + n)
             out[mid] = {
-                Columns.ACTION_DIST_INPUTS: all_logits[heads.index(mid), rows],
+                Columns.ACTION_DIST_INPUTS: all_logits[order.index(mid), rows],
                 Columns.EMBEDDINGS: {"z": z[rows], TASK_VALUE: task_value[rows]},
                 TASK_LOGITS: task_logits[rows],
             }
             start += n
-        out[TASK_ID] = {ALL_HEAD_LOGITS: all_logits, TASK_LOGITS: task_logits}
+        out[TASK_ID] = {ALL_HEAD_LOGITS: all_logits, ALL_HEAD_OUTPUTS: outputs, TASK_LOGITS: task_logits}
         return out
 
     @property

@@ -51,7 +51,10 @@ class PartnerHeadModule(TorchRLModule, ValueFunctionAPI):
 
     def logits(self, z: torch.Tensor, task_logits: torch.Tensor, action_mask: torch.Tensor | None) -> torch.Tensor:
         """Return the ego's masked policy logits for this partner given the task output."""
-        head = self.pi(z)
+        return self.combine(self.pi(z), task_logits, action_mask)
+
+    def combine(self, head: torch.Tensor, task_logits: torch.Tensor, action_mask: torch.Tensor | None) -> torch.Tensor:
+        """Return the masked policy logits from this head's own output `head` (= `self.pi(z)`) and the task logits."""
         return masked_logits(task_logits + head if self.use_task_logits else head, action_mask)
 
     def _forward(self, batch: dict[str, Any], **kwargs) -> dict[str, Any]:

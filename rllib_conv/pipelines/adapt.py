@@ -67,6 +67,7 @@ def adapt_setup(cfg: AdaptConfig) -> tuple[EgoSetup, dict[str, str], ExperimentC
     exp = trained.model_copy(
         update={
             "lam": 0.0,
+            "head_l2": 0.0,
             "method": "agg" if scratch else trained.method,
             "freeze": [] if cfg.train_task else ["task"],
             "ppo": type(trained.ppo).model_validate(ppo),

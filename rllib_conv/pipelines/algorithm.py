@@ -167,7 +167,13 @@ def build_ppo_config(setup: EgoSetup, load: dict[str, str] | None = None) -> PPO
         .rl_module(rl_module_spec=MultiRLModuleSpec(multi_rl_module_class=ConventionMultiRLModule, rl_module_specs=specs))
         .learners(
             learner_class=MarginalPPOLearner,
-            learner_config_dict={"lam": exp.lam, "freeze": list(exp.freeze), "adam_eps": ppo.adam_eps, "z_lr_scale": exp.z_lr_scale},
+            learner_config_dict={
+                "lam": exp.lam,
+                "freeze": list(exp.freeze),
+                "adam_eps": ppo.adam_eps,
+                "z_lr_scale": exp.z_lr_scale,
+                "head_l2": exp.head_l2,
+            },
         )
     )
 

@@ -74,9 +74,12 @@ BANDIT_METHODS = [
     Method("maml", {"method": "maml"}),
     Method("oracle", {"method": "oracle"}),
 ]
+# Not in the paper: ours with the head penalty (`head_l2`), so heads hold conventions only.
+HEAD_PENALTY_05 = Method("modular-lam0.5-hl0.01", {"method": "modular", "lam": 0.5, "head_l2": 0.01})
 BLOCKS_METHODS = [
     Method("modular-lam0", {"method": "modular", "lam": 0.0}),
     MODULAR_05,
+    HEAD_PENALTY_05,
     Method("lowz-lam0.5", {"method": "modular", "lam": 0.5, "model": {"z_dim": 20}}),
     Method("agg", {"method": "agg"}),
     Method("no_task_logits", {"method": "no_task_logits"}),
@@ -100,6 +103,7 @@ class Plan:
     selfplay_methods: list[Method] = field(default_factory=lambda: list(CORE_METHODS))
     population_overrides: dict[str, dict[str, Any]] = field(default_factory=dict)  # training settings per population
     zeroshot_populations: list[str] = field(default_factory=list)
+    zeroshot_methods: list[Method] = field(default_factory=lambda: list(ZEROSHOT_METHODS))
     # Populations left out of the marginals: their partners' conventions are not uniform over
     # optimal actions (the user-study participants prefer some arms), so the distance to that
     # uniform distribution measures nothing the regulariser aims at.
@@ -164,7 +168,9 @@ def _plan(game: str, seeds: int, quick: bool) -> Plan:
             seeds=seed_list,
             populations={"blocks-perm": BLOCKS_METHODS},
             selfplay=[{"name": "blocks-selfplay"}],
+            selfplay_methods=[*CORE_METHODS, HEAD_PENALTY_05],
             zeroshot_populations=["blocks-perm"],
+            zeroshot_methods=[*ZEROSHOT_METHODS, HEAD_PENALTY_05],
             adapt_partners=6,
         )
     return Plan(game=game, seeds=seed_list, populations={}, selfplay=[{"name": "hanabi-selfplay"}], selfplay_methods=HANABI_METHODS, adapt_partners=4)
@@ -269,7 +275,7 @@ class Reproduction:
 
     def stage_zeroshot(self) -> None:
         for population in self.plan.zeroshot_populations:
-            for method in ZEROSHOT_METHODS:
+            for method in self.plan.zeroshot_methods:
                 exp = self.experiment(population, method)
                 name = exp["name"]
                 if (self.root / "zeroshot" / f"{name}.csv").is_file():
@@ -348,7 +354,7 @@ class Reproduction:
     def stage_experiments(self, stage: str) -> list[str]:
         """The experiments stage `stage` of this plan produces, by name."""
         trained = [self.experiment(p, m)["name"] for p, m in self.trained()]
-        zeroshot = [self.experiment(p, m)["name"] for p in self.plan.zeroshot_populations for m in ZEROSHOT_METHODS]
+        zeroshot = [self.experiment(p, m)["name"] for p in self.plan.zeroshot_populations for m in self.plan.zeroshot_methods]
         return {
             "selfplay": [sp["name"] for sp in self.plan.selfplay],
             "train": trained,

@@ -21,7 +21,7 @@ from ray.tune.execution.placement_groups import PlacementGroupFactory
 
 from rllib_conv.config import GRID_KEY, SINGLE_HEAD_METHODS, ExperimentConfig, validate
 from rllib_conv.envs.oracles import has_oracle
-from rllib_conv.learners.marginal_learner import MARGINAL_REG_KEY
+from rllib_conv.learners.marginal_learner import HEAD_L2_KEY, MARGINAL_REG_KEY
 from rllib_conv.modules.multi import AGG_HEAD_ID, ego_id, partner_id
 from rllib_conv.pipelines.algorithm import EgoSetup, build_ppo_config, resolve
 from rllib_conv.pipelines.checkpoints import AlgorithmCheckpoints
@@ -51,7 +51,7 @@ def summarize(result: dict[str, Any], setup: EgoSetup) -> dict[str, Any]:
         "env_steps": int(runners.get("num_env_steps_sampled_lifetime", 0)),
         "return_mean": float(np.mean(list(per_partner.values()))) if per_partner else math.nan,
         **per_partner,
-        MARGINAL_REG_KEY: float(learners.get("__all_modules__", {}).get(MARGINAL_REG_KEY, math.nan)),
+        **{key: float(learners.get("__all_modules__", {}).get(key, math.nan)) for key in (MARGINAL_REG_KEY, HEAD_L2_KEY)},
     }
 
 

@@ -20,17 +20,18 @@ from ray import tune
 from ray.tune import Callback
 from ray.tune.execution.placement_groups import PlacementGroupFactory
 
-from rllib_conv.learners.marginal_learner import MARGINAL_REG_KEY
+from rllib_conv.learners.marginal_learner import HEAD_L2_KEY, MARGINAL_REG_KEY
 
 
 class ProgressLine(Callback):
-    """Print one line per trial iteration: steps, returns (mean and worst partner), regulariser, gate."""
+    """Print one line per trial iteration: steps, returns (mean and worst partner), regulariser, head size, gate."""
 
     FIELDS = (
         ("return_mean", "return"),
         ("train_return", "return"),
         ("mean_return", "eval"),
         (MARGINAL_REG_KEY, "reg"),
+        (HEAD_L2_KEY, "heads"),
         ("gate_check", "gate check"),
         ("gate_score", "gate"),
     )

@@ -66,7 +66,9 @@ def step_experiments(trained: ExperimentConfig, cfg: ZeroShotConfig) -> dict[str
     """Return the ego settings of step 1 (`heads`: test heads, old task) and step 2 (`task`: task module, new task).
 
     Both regulariser weights default to the run's lam; they apply to runs with learned task
-    logits (`modular`) only, the others have none to regularise and keep 0.
+    logits (`modular`) only, the others have none to regularise and keep 0. Step 1 keeps
+    the run's head penalty (test heads trained like the training heads); step 2 drops it,
+    since its heads are frozen and the penalty would only bend z to shrink them.
     """
 
     def weight(lam: float | None) -> float:
@@ -76,7 +78,14 @@ def step_experiments(trained: ExperimentConfig, cfg: ZeroShotConfig) -> dict[str
     return {
         "heads": trained.model_copy(update={"lam": weight(cfg.head_lam), "freeze": ["task"]}),
         "task": trained.model_copy(
-            update={"freeze": ["heads"], "ppo": ppo, "env_config": {}, "lam": weight(cfg.task_lam), "z_lr_scale": cfg.task_z_lr_scale}
+            update={
+                "freeze": ["heads"],
+                "ppo": ppo,
+                "env_config": {},
+                "lam": weight(cfg.task_lam),
+                "z_lr_scale": cfg.task_z_lr_scale,
+                "head_l2": 0.0,
+            }
         ),
     }
 

@@ -134,6 +134,24 @@ def test_paper_inside_and_outside_our_interval(tmp_path: Path) -> None:
     assert "No adaptation curves" in text and "No marginals.csv found." in text
 
 
+def test_methods_beyond_the_paper_are_listed_but_left_out_of_its_claims(tmp_path: Path) -> None:
+    game = tmp_path / "repro" / "blocks"
+    game.mkdir(parents=True)
+    (game / "plan.json").write_text('{"game": "blocks", "seeds": [0, 1, 2], "quick": false}')
+    header = "run,env,env_config,population,method,lam,z_dim,seed,distance,distance_all_states,states,experiment"
+    rows = [header]
+    # Ours 0.10, BaselineAgg 1.0, ours with the head penalty 0.02: the closest, but not a method of the paper.
+    for label, method, distance in (("modular-lam0.5", "modular", 0.10), ("agg", "agg", 1.0), ("modular-lam0.5-hl0.01", "modular", 0.02)):
+        for s in range(3):
+            exp = f"blocks-perm__{label}"
+            rows.append(f"runs/{exp}/T{s},blocks,{{}},blocks-perm,{method},0.5,80,{s},{distance},{distance},10,{exp}")
+    (game / "marginals.csv").write_text("\n".join(rows) + "\n")
+    text = build_report(tmp_path / "repro", tmp_path / "out").read_text()
+    assert "| Blocks (hand-designed) | ours λ=0.5 + head penalty | — | 0.020 [0.020, 0.020] (n=3) |" in text
+    assert "| Blocks (hand-designed) | supported | ours λ=0.5 0.100, BaselineAgg 1.000 |" in text
+    assert "ours λ=0.5 + head penalty (`modular-lam0.5-hl0.01`) is not in the paper" in text
+
+
 def test_empty_root_and_recorded_sessions(tmp_path: Path) -> None:
     sessions = tmp_path / "sessions"
     sessions.mkdir()

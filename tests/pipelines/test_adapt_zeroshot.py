@@ -35,6 +35,19 @@ def test_adaptation_adds_a_fresh_head_and_reaches_the_new_partner(bandit_egos, t
     assert digest(trial) == before  # the trained ego's files are untouched
 
 
+def test_adapting_drops_the_head_penalty(bandit_egos, tmp_path) -> None:
+    import shutil
+
+    import yaml
+
+    trial = tmp_path / "trial"
+    shutil.copytree(bandit_egos["bandit-s2-hand"].path, trial)
+    trained = yaml.safe_load((trial / "config.yaml").read_text())
+    (trial / "config.yaml").write_text(yaml.safe_dump({**trained, "head_l2": 0.1}))
+    setup, _, run_config = adapt_setup(AdaptConfig(runs=[str(trial)], run=str(trial), partner="hand-test-1"))
+    assert run_config.head_l2 == 0.1 and setup.exp.head_l2 == 0.0  # adapting is plain PPO, as in the paper
+
+
 def test_scratch_starts_from_nothing(bandit_egos, tmp_path) -> None:
     trial = bandit_egos["bandit-s2-hand"].path
     setup, load, _ = adapt_setup(AdaptConfig(runs=[trial], run=trial, partner="hand-test-0", method="scratch"))
@@ -70,7 +83,8 @@ def test_zero_shot_steps_carry_their_settings(method: str) -> None:
     from rllib_conv.config import ZeroShotConfig
     from rllib_conv.pipelines.zeroshot import step_experiments
 
-    trained = ExperimentConfig(population="blocks-perm", method=method, lam=0.5 if method == "modular" else 0.0)
+    modular = method == "modular"
+    trained = ExperimentConfig(population="blocks-perm", method=method, lam=0.5 if modular else 0.0, head_l2=0.01 if modular else 0.0)
     cfg = ZeroShotConfig(runs=["-"], head_lam=0.3, task_z_lr_scale=0.2, task_entropy=0.01)
     steps = step_experiments(trained, cfg)
     heads, task = steps["heads"], steps["task"]
@@ -81,6 +95,8 @@ def test_zero_shot_steps_carry_their_settings(method: str) -> None:
     assert defaults["heads"].lam == defaults["task"].lam == trained.lam
     assert (heads.z_lr_scale, task.z_lr_scale) == (1.0, 0.2)
     assert (heads.ppo.entropy_coeff, task.ppo.entropy_coeff) == (trained.ppo.entropy_coeff, 0.01)
+    # Test heads are penalised like the training heads; frozen heads in step 2 are not.
+    assert (heads.head_l2, task.head_l2) == (trained.head_l2, 0.0)
     assert trained.lam == (0.5 if method == "modular" else 0.0) and trained.freeze == []  # the run's config is untouched
 
 

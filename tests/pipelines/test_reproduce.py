@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import pandas as pd
 import pytest
@@ -19,6 +20,19 @@ def test_narrow_keeps_the_named_populations_and_methods() -> None:
     assert [sp["name"] for sp in plan.selfplay] == ["bandit-s3-selfplay"]
     assert plan.zeroshot_populations == ["bandit-s1-hand", "bandit-s2-hand"]  # s3 not named: dropped
     assert [m.label for m in plan.selfplay_methods] == ["modular-lam0.5", "agg"]
+
+
+def test_blocks_plan_adds_ours_with_the_head_penalty() -> None:
+    plan = plan_for("blocks")
+    assert [m.label for m in plan.zeroshot_methods] == ["modular-lam0.5", "no_task_logits", "modular-lam0.5-hl0.01"]
+    assert [m.label for m in plan_for("bandit").zeroshot_methods] == ["modular-lam0.5", "no_task_logits"]
+    assert [m.label for m in plan.selfplay_methods] == ["modular-lam0.5", "agg", "no_task_logits", "maml", "modular-lam0.5-hl0.01"]
+    penalised = next(m for m in plan.populations["blocks-perm"] if m.label == "modular-lam0.5-hl0.01")
+    assert penalised.settings == {"method": "modular", "lam": 0.5, "head_l2": 0.01}
+    narrowed = Reproduction(narrow(plan_for("blocks"), ["blocks-perm"], ["agg"]), Path("unused"))
+    assert [m.label for _, m in narrowed.trained()] == ["modular-lam0.5", "agg"]
+    # Zero-shot compares its methods with each other: --methods does not narrow them.
+    assert narrowed.stage_experiments("zeroshot") == [f"blocks-perm__{m}" for m in ("modular-lam0.5", "no_task_logits", "modular-lam0.5-hl0.01")]
 
 
 @pytest.mark.parametrize(

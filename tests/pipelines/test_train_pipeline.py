@@ -4,10 +4,17 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pandas as pd
+import torch
 import yaml
 
-from rllib_conv import config
+from rllib_conv import config, partners
+from rllib_conv.envs.oracles import oracle_for
+from rllib_conv.learners.marginal_learner import head_size
+from rllib_conv.modules.multi import ego_id
+from rllib_conv.pipelines.checkpoints import last_checkpoint
+from rllib_conv.pipelines.evaluate import bandit_states, load_module, task_probs
 from rllib_conv.pipelines.train import CONFIG_FILE, EVAL_FILE, run
 
 PARTNERS = [f"hand-train-{k}" for k in range(4)]
@@ -58,3 +65,28 @@ def test_grid_over_lam_from_yaml(ray_session, tmp_path) -> None:
     lams = sorted(yaml.safe_load(open(f"{r.path}/{CONFIG_FILE}"))["lam"] for r in results)
     assert lams == [0.0, 0.5]
     assert yaml.safe_load(open(tmp_path / "runs" / "grid" / "experiment.yaml"))["lam"] == {"grid_search": [0.0, 0.5]}
+
+
+def test_head_penalty_hands_the_rules_to_the_task_module_and_keeps_the_conventions(bandit_egos, tmp_path) -> None:
+    """Bandit, 2 symmetric and 2 rule contexts: with `head_l2` the heads hold (almost) nothing in rule contexts."""
+    pop = partners.get("bandit-s2-hand")
+    obs, mask = bandit_states(pop.env_config)
+    optimal = oracle_for(pop.env, pop.env_config)(obs)
+    rule = optimal.sum(axis=1) == 1
+
+    def head_sizes(trial: str) -> tuple[float, float, np.ndarray]:
+        module = load_module(last_checkpoint(trial))
+        with torch.no_grad():
+            z = module.task.policy(torch.as_tensor(obs), None).z
+            outputs = torch.stack([module[ego_id(e.name)].pi(z) for e in pop.entries("train")])
+        return head_size(outputs[:, rule]).item(), head_size(outputs[:, ~rule]).item(), task_probs(module, obs, mask)
+
+    plain_rule, _, _ = head_sizes(bandit_egos["bandit-s2-hand"].path)
+    raw = config.load("tune_configs/bandit_modular.yaml", ["name=penalised", "head_l2=0.05"])
+    result = run(raw, storage=tmp_path)[0]
+    rule_size, convention_size, task = head_sizes(result.path)
+    assert plain_rule > 1.0  # without the penalty the heads also push the rule arms
+    assert rule_size < 0.01 * plain_rule and convention_size > 10 * rule_size
+    assert (task[rule] * optimal[rule]).sum(axis=1).min() >= 0.95  # the task module alone plays the rules
+    for name in PARTNERS:
+        assert result.metrics[f"eval/exact/{name}"] >= 0.9, (name, result.metrics[f"eval/exact/{name}"])
