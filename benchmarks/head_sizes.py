@@ -20,7 +20,6 @@ import argparse
 import sys
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 import torch
 import yaml
@@ -30,20 +29,13 @@ from _common import write_result  # noqa: E402
 
 from rllib_conv import partners  # noqa: E402
 from rllib_conv.config import ExperimentConfig  # noqa: E402
-from rllib_conv.envs.oracles import canonical_actions, oracle_for  # noqa: E402
 from rllib_conv.learners.marginal_learner import head_size  # noqa: E402
 from rllib_conv.modules.multi import ego_id  # noqa: E402
 from rllib_conv.pipelines.adapt import trial_folders  # noqa: E402
 from rllib_conv.pipelines.checkpoints import last_checkpoint  # noqa: E402
-from rllib_conv.pipelines.evaluate import load_module, merge_actions  # noqa: E402
+from rllib_conv.pipelines.evaluate import load_module, optimal_actions  # noqa: E402
 from rllib_conv.pipelines.marginals import marginal_states  # noqa: E402
 from rllib_conv.pipelines.train import CONFIG_FILE  # noqa: E402
-
-
-def rule_states(env_name: str, env_config: dict, obs: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """[B] bool: whether each state has exactly one optimal (canonical) action."""
-    canon = canonical_actions(env_name, obs, mask.shape[1])
-    return (merge_actions(oracle_for(env_name, env_config)(obs) * mask, canon) > 0).sum(axis=1) == 1
 
 
 @torch.no_grad()
@@ -54,7 +46,7 @@ def head_sizes(experiment: Path, episodes: int, seed: int) -> pd.DataFrame:
         exp = ExperimentConfig.model_validate(yaml.safe_load((trial / CONFIG_FILE).read_text()))
         pop = partners.get(exp.population)
         obs, mask = marginal_states(pop, episodes, seed)
-        rule = rule_states(pop.env, pop.env_config, obs, mask)
+        rule = optimal_actions(pop.env, pop.env_config, obs, mask).sum(axis=1) == 1
         module = load_module(last_checkpoint(trial))
         # Unmasked: the games with an oracle have no illegal actions, and masked logits would swamp the sizes.
         z, task_logits = module.task.policy(torch.as_tensor(obs), None)

@@ -95,6 +95,12 @@ def merge_actions(values: np.ndarray, canon: np.ndarray) -> np.ndarray:
     return out
 
 
+def optimal_actions(env_name: str, env_config: dict[str, Any], obs: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """[B, A] bool: which canonical actions are optimal in each state (the game's oracle, legal actions only)."""
+    canon = canonical_actions(env_name, obs, mask.shape[1])
+    return merge_actions(oracle_for(env_name, env_config)(obs) * mask, canon) > 0
+
+
 def marginal_distances(
     module: ConventionMultiRLModule,
     env_name: str,
@@ -111,7 +117,7 @@ def marginal_distances(
     paper's marginals figure); `all`: over every state.
     """
     canon = canonical_actions(env_name, obs, mask.shape[1])
-    optimal = merge_actions(oracle_for(env_name, env_config)(obs) * mask, canon) > 0
+    optimal = optimal_actions(env_name, env_config, obs, mask)
     truth = optimal / optimal.sum(axis=1, keepdims=True)
     probs = task_probs(module, obs, mask) if head_id is None else head_probs(module, head_id, obs, mask)
     dist = np.abs(merge_actions(probs, canon) - truth).sum(axis=1)
