@@ -22,31 +22,31 @@ from pathlib import Path
 
 import pandas as pd
 import torch
-import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import write_result  # noqa: E402
 
 from rllib_conv import partners  # noqa: E402
-from rllib_conv.config import ExperimentConfig  # noqa: E402
 from rllib_conv.learners.marginal_learner import head_size  # noqa: E402
 from rllib_conv.modules.multi import ego_id  # noqa: E402
 from rllib_conv.pipelines.adapt import trial_folders  # noqa: E402
 from rllib_conv.pipelines.checkpoints import last_checkpoint  # noqa: E402
 from rllib_conv.pipelines.evaluate import load_module, optimal_actions  # noqa: E402
 from rllib_conv.pipelines.marginals import marginal_states  # noqa: E402
-from rllib_conv.pipelines.train import CONFIG_FILE  # noqa: E402
+from rllib_conv.pipelines.train import trial_config  # noqa: E402
 
 
 @torch.no_grad()
 def head_sizes(experiment: Path, episodes: int, seed: int) -> pd.DataFrame:
     """One row per trial: head and task sizes on rule and convention states."""
-    rows = []
+    rows, states = [], {}
     for trial in trial_folders(experiment):
-        exp = ExperimentConfig.model_validate(yaml.safe_load((trial / CONFIG_FILE).read_text()))
+        exp = trial_config(trial)
         pop = partners.get(exp.population)
-        obs, mask = marginal_states(pop, episodes, seed)
-        rule = optimal_actions(pop.env, pop.env_config, obs, mask).sum(axis=1) == 1
+        if pop.name not in states:  # the trials of an experiment usually share their population
+            obs, mask = marginal_states(pop, episodes, seed)
+            states[pop.name] = obs, mask, optimal_actions(pop.env, pop.env_config, obs, mask).sum(axis=1) == 1
+        obs, mask, rule = states[pop.name]
         module = load_module(last_checkpoint(trial))
         # Unmasked: the games with an oracle have no illegal actions, and masked logits would swamp the sizes.
         z, task_logits = module.task.policy(torch.as_tensor(obs), None)

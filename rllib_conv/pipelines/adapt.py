@@ -18,7 +18,6 @@ from pathlib import Path
 from typing import Any
 
 import pandas as pd
-import yaml
 from ray import tune
 from ray.tune.execution.placement_groups import PlacementGroupFactory
 
@@ -28,7 +27,7 @@ from rllib_conv.modules.multi import AGG_HEAD_ID, TASK_ID
 from rllib_conv.pipelines.algorithm import EgoSetup, build_ppo_config, setup_for
 from rllib_conv.pipelines.checkpoints import RL_MODULE_DIR, AlgorithmCheckpoints, last_checkpoint
 from rllib_conv.pipelines.evaluate import ego_return
-from rllib_conv.pipelines.train import CONFIG_FILE, head_for
+from rllib_conv.pipelines.train import CONFIG_FILE, head_for, trial_config
 from rllib_conv.pipelines.tuning import fit
 
 PAIR_KEY = "adapt_pair"
@@ -51,7 +50,7 @@ def trial_folders(path: str | Path) -> list[Path]:
 def adapt_setup(cfg: AdaptConfig) -> tuple[EgoSetup, dict[str, str], ExperimentConfig]:
     """The ego setup adapting run `cfg.run` to partner `cfg.partner`, the weights to load, the run's config."""
     trial = Path(cfg.run)
-    trained = ExperimentConfig.model_validate(yaml.safe_load((trial / CONFIG_FILE).read_text()))
+    trained = trial_config(trial)
     pop = partners.get(cfg.population or trained.population)
     entry = next((e for e in pop.partners if e.name == cfg.partner), None)
     if entry is None:
@@ -142,7 +141,7 @@ def adaptation_trials(cfg: AdaptConfig) -> list[dict[str, str]]:
     for run in cfg.runs:
         for trial in trial_folders(run):
             last_checkpoint(trial)
-            trained = ExperimentConfig.model_validate(yaml.safe_load((trial / CONFIG_FILE).read_text()))
+            trained = trial_config(trial)
             pop = partners.get(cfg.population or trained.population)
             names = cfg.partners or [e.name for e in pop.entries(cfg.split)]
             unknown = set(names) - {e.name for e in pop.partners}

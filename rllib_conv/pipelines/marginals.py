@@ -14,10 +14,9 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-import yaml
 
 from rllib_conv import envs, partners
-from rllib_conv.config import SINGLE_HEAD_METHODS, ExperimentConfig
+from rllib_conv.config import SINGLE_HEAD_METHODS
 from rllib_conv.envs.oracles import oracle_for
 from rllib_conv.modules.multi import AGG_HEAD_ID
 from rllib_conv.partners.base import Partner
@@ -70,11 +69,11 @@ def marginal_states(population: Population, episodes: int = 200, seed: int = 0) 
 def marginal_report(trials: list[Path], episodes: int = 200, seed: int = 0) -> pd.DataFrame:
     """One row per trained ego with a task output: its task module's distance to the true marginals."""
     from rllib_conv.pipelines.checkpoints import last_checkpoint
-    from rllib_conv.pipelines.train import CONFIG_FILE
+    from rllib_conv.pipelines.train import trial_config
 
     rows, states = [], {}
     for trial in trials:
-        exp = ExperimentConfig.model_validate(yaml.safe_load((trial / CONFIG_FILE).read_text()))
+        exp = trial_config(trial)
         if exp.method not in TASK_OUTPUT_METHODS:
             continue
         pop = partners.get(exp.population)

@@ -34,6 +34,11 @@ EVAL_FILE = "eval.json"
 CONFIG_FILE = "config.yaml"
 
 
+def trial_config(trial: str | Path) -> ExperimentConfig:
+    """The resolved ego config a trained-ego trial folder was run with (its `config.yaml`)."""
+    return ExperimentConfig.model_validate(yaml.safe_load((Path(trial) / CONFIG_FILE).read_text()))
+
+
 def head_for(setup: EgoSetup, partner_name: str) -> str:
     """The ego head that plays with `partner_name` (the shared head for BaselineAgg)."""
     return AGG_HEAD_ID if setup.exp.method in SINGLE_HEAD_METHODS else ego_id(partner_name)

@@ -18,7 +18,6 @@ from typing import Any
 
 import pandas as pd
 import torch
-import yaml
 from ray import tune
 from ray.tune.execution.placement_groups import PlacementGroupFactory
 
@@ -30,7 +29,7 @@ from rllib_conv.pipelines.adapt import trial_folders
 from rllib_conv.pipelines.algorithm import build_ppo_config, push_learner_weights, setup_for
 from rllib_conv.pipelines.checkpoints import RL_MODULE_DIR, last_checkpoint
 from rllib_conv.pipelines.evaluate import ego_return
-from rllib_conv.pipelines.train import CONFIG_FILE
+from rllib_conv.pipelines.train import trial_config
 from rllib_conv.pipelines.tuning import fit
 
 COMPOSABLE_METHODS = ("modular", "no_task_logits", "oracle")
@@ -41,7 +40,7 @@ RESULT_COLUMNS = ["run", "method", "lam", "seed", "partner", "mean_return", "std
 def zeroshot_plan(cfg: ZeroShotConfig) -> dict[str, Any]:
     """Check the run can be composed and gather what the three steps need."""
     trial = Path(cfg.run)
-    trained = ExperimentConfig.model_validate(yaml.safe_load((trial / CONFIG_FILE).read_text()))
+    trained = trial_config(trial)
     if trained.method not in COMPOSABLE_METHODS:
         raise ValueError(f"method {trained.method!r} is not modular: zero-shot composition needs one of {COMPOSABLE_METHODS}")
     old = partners.get(trained.population)

@@ -305,14 +305,13 @@ def load_run(path: str | Path, what: str = "RUN") -> EgoRun:
     Raises ValueError naming `what` (the argument) if the folder is not a trained ego with a
     checkpoint, holds several trials, or its method has no marginal estimate to use as prior.
     """
-    import yaml
 
     from rllib_conv import partners
-    from rllib_conv.config import SINGLE_HEAD_METHODS, ExperimentConfig
+    from rllib_conv.config import SINGLE_HEAD_METHODS
     from rllib_conv.modules.multi import AGG_HEAD_ID
     from rllib_conv.pipelines.adapt import last_checkpoint, trial_folders
     from rllib_conv.pipelines.evaluate import load_module
-    from rllib_conv.pipelines.train import CONFIG_FILE
+    from rllib_conv.pipelines.train import CONFIG_FILE, trial_config
 
     path = Path(path)
     if not path.exists():
@@ -325,7 +324,7 @@ def load_run(path: str | Path, what: str = "RUN") -> EgoRun:
         names = ", ".join(t.name for t in trials[:3]) + (", ..." if len(trials) > 3 else "")
         raise ValueError(f"{what} {str(path)!r} holds {len(trials)} trained-ego trials ({names}); pass one trial folder")
     trial = trials[0]
-    exp = ExperimentConfig.model_validate(yaml.safe_load((trial / CONFIG_FILE).read_text()))
+    exp = trial_config(trial)
     if exp.method in ("no_task_logits",):
         raise ValueError(f"{what} {str(trial)!r} is a {exp.method!r} ego: its task module is not a marginal estimate; use a modular run")
     try:
