@@ -23,12 +23,14 @@ from analysis.summaries import curve_band, summarise, with_value  # noqa: E402
 
 # Methods in the order of the paper's legends; colours follow the paper's bar charts where it
 # has them (L1 red = λ 0.0, L3 salmon, L4 orange = λ 0.5, grey baselines, green oracle).
-LABEL_ORDER: tuple[str, ...] = ("modular-lam0", "modular-lam0.3", "modular-lam0.5", "modular-lam0.5-hl0.01", "lowz-lam0.5", "agg", "no_task_logits", "maml", "oracle", "scratch")
+LABEL_ORDER: tuple[str, ...] = ("modular-lam0", "modular-lam0.3", "modular-lam0.5", "modular-lam0.5-hl0.01", "modular-lam0.5-pick", "modular-lam0.5-hl0.01-pick", "lowz-lam0.5", "agg", "no_task_logits", "maml", "oracle", "scratch")
 LABEL_COLOURS: dict[str, tuple[float, float, float] | str] = {
     "modular-lam0": (0.6627, 0.1608, 0.1804),
     "modular-lam0.3": (0.9608, 0.5020, 0.5098),
     "modular-lam0.5": (1.0000, 0.6471, 0.1765),
     "modular-lam0.5-hl0.01": "tab:brown",  # not in the paper
+    "modular-lam0.5-pick": "tab:pink",  # not in the paper
+    "modular-lam0.5-hl0.01-pick": "tab:olive",  # not in the paper
     "lowz-lam0.5": "tab:purple",
     "agg": (0.4118, 0.4118, 0.4118),
     "no_task_logits": (0.6627, 0.6627, 0.6627),

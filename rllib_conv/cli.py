@@ -121,8 +121,9 @@ def _cmd_adapt(args: argparse.Namespace) -> None:
     from rllib_conv import config
     from rllib_conv.pipelines.adapt import run_adaptation
 
-    raw = {"name": args.name, "runs": args.runs, "split": args.split, "train_task": not args.frozen_task}
-    raw.update({k: v for k, v in {"population": args.population, "partners": args.partner, "method": args.method}.items() if v})
+    raw = {"name": args.name, "runs": args.runs, "split": args.split, "train_task": not args.frozen_task, "head_init": args.head_init}
+    options = {"population": args.population, "partners": args.partner, "method": args.method, "pick_steps": args.pick_steps}
+    raw.update({k: v for k, v in options.items() if v})
     raw = config.from_dict(raw, args.set, schema=config.AdaptConfig)
     curves = run_adaptation(raw, out=args.out, storage=args.storage, address=args.address)
     summary = curves.groupby(["method", "lam", "steps"])[["mean_return", "exact_return"]].mean().unstack("steps")
@@ -228,6 +229,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--split", default="test", choices=["train", "test"])
     p.add_argument("--method", choices=["scratch"], help="adapt a fresh network instead (learning from scratch)")
     p.add_argument("--frozen-task", action="store_true", help="keep the task module frozen while adapting")
+    p.add_argument(
+        "--head-init", default="fresh", choices=["fresh", "pick"],
+        help="pick: first try the fresh head and every training partner's head on the new partner, adapt from the best (not in the paper)",
+    )
+    p.add_argument("--pick-steps", type=int, help="env steps spent picking the head (default: one update's worth)")
     p.add_argument("--name", default="adapt", help="name of the output CSV and Tune run")
     p.add_argument("--out", default="adaptation", help="folder for the curves CSV (default: adaptation)")
     _add_run_args(p)

@@ -216,6 +216,9 @@ class AdaptConfig(_Strict):
     is evaluated before every update (`every` env steps) up to `steps`, `episodes` episodes
     each (and exactly on the bandit). Unset values take the paper's per-game adaptation
     settings (`ADAPT_DEFAULTS`); `ppo` overrides the run's PPO settings.
+    `head_init: pick` (not in the paper; egos with one head per partner) first spends
+    `pick_steps` env steps (default `every`) trying the fresh head and every training
+    partner's head on the new partner, and adapts from the best (`pipelines/head_pick`).
     """
 
     name: FolderName = "adapt"
@@ -225,6 +228,8 @@ class AdaptConfig(_Strict):
     partners: list[str] | None = None
     method: Literal["scratch"] | None = None
     train_task: bool = True
+    head_init: Literal["fresh", "pick"] = "fresh"
+    pick_steps: PositiveInt | None = None
     every: PositiveInt | None = None
     steps: PositiveInt | None = None
     episodes: PositiveInt = 200
@@ -233,6 +238,14 @@ class AdaptConfig(_Strict):
     # Set per Tune trial: which run and which partner this trial adapts.
     run: str | None = None
     partner: str | None = None
+
+    @model_validator(mode="after")
+    def _consistent(self) -> "AdaptConfig":
+        if self.head_init == "pick" and self.method == "scratch":
+            raise ValueError("head_init 'pick' needs the trained ego's heads; method 'scratch' starts from a fresh network")
+        if self.pick_steps is not None and self.head_init != "pick":
+            raise ValueError(f"pick_steps is set but head_init is {self.head_init!r}; set head_init: pick to use it")
+        return self
 
 
 # The paper's adaptation protocol: evaluate every `every` env steps up to `steps`; one PPO

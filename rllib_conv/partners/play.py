@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import itertools
+from collections.abc import Iterator
+
 import numpy as np
 from pettingzoo.utils.env import AECEnv, ParallelEnv
 
@@ -15,12 +18,14 @@ def _split(obs) -> tuple[np.ndarray, np.ndarray | None]:
     return obs, None
 
 
-def play_episodes(env: AECEnv | ParallelEnv, seats: dict[str, Partner], num_episodes: int, seed: int = 0) -> np.ndarray:
-    """Play `num_episodes` with `seats[agent]` choosing for each agent; return each episode's score.
+def episode_stream(env: AECEnv | ParallelEnv, seats: dict[str, Partner], seed: int = 0) -> Iterator[tuple[float, int]]:
+    """Play episodes without end with `seats[agent]` choosing for each agent; yield each one's (score, env steps).
 
     The score of an episode is the total reward of the first seat (the games are fully
-    cooperative, so every seat gets the same total). Episodes are seeded `seed, seed+1, ...`
-    and each partner is seeded once with `seed`, so results are reproducible.
+    cooperative, so every seat gets the same total). Env steps count moves as RLlib's
+    adapter does: one per agent move in AEC games, one per joint step in parallel ones.
+    Episodes are seeded `seed, seed+1, ...` and each partner is seeded once with `seed`,
+    so play is reproducible.
     """
     missing = set(env.possible_agents) - set(seats)
     if missing:
@@ -28,20 +33,21 @@ def play_episodes(env: AECEnv | ParallelEnv, seats: dict[str, Partner], num_epis
     for i, partner in enumerate(seats.values()):
         partner.seed(seed + 7919 * i)
     first = env.possible_agents[0]
-    scores = np.zeros(num_episodes)
-    for ep in range(num_episodes):
+    for ep in itertools.count():
+        score, steps = 0.0, 0
         if isinstance(env, AECEnv):
             env.reset(seed=seed + ep)
             for agent in env.agent_iter():
                 obs, reward, term, trunc, _ = env.last()
                 if agent == first:
-                    scores[ep] += reward
+                    score += reward
                 if term or trunc:
                     env.step(None)
                     continue
                 vec, mask = _split(obs)
                 mask = np.ones(env.action_space(agent).n, dtype=np.int8) if mask is None else mask
                 env.step(seats[agent].act(vec, mask))
+                steps += 1
         else:
             obs, _ = env.reset(seed=seed + ep)
             while env.agents:
@@ -51,5 +57,11 @@ def play_episodes(env: AECEnv | ParallelEnv, seats: dict[str, Partner], num_epis
                     mask = np.ones(env.action_space(agent).n, dtype=np.int8) if mask is None else mask
                     actions[agent] = seats[agent].act(vec, mask)
                 obs, rewards, _, _, _ = env.step(actions)
-                scores[ep] += rewards.get(first, 0.0)
-    return scores
+                score += rewards.get(first, 0.0)
+                steps += 1
+        yield float(score), steps
+
+
+def play_episodes(env: AECEnv | ParallelEnv, seats: dict[str, Partner], num_episodes: int, seed: int = 0) -> np.ndarray:
+    """Play `num_episodes` (see `episode_stream`); return each episode's score."""
+    return np.array([score for score, _ in itertools.islice(episode_stream(env, seats, seed), num_episodes)], dtype=float)

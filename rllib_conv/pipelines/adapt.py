@@ -4,7 +4,10 @@ Every (trained ego, new partner) pair is one Tune trial (`AdaptTrainable`): the 
 rebuilt from the run's resolved config with the new partner as its only partner, the
 task module's weights (and, for single-network methods, the head's) load from the run's
 last checkpoint, and the ego is evaluated before every update. All methods go through
-this one pipeline; `scratch` starts from a fresh single network instead.
+this one pipeline; `scratch` starts from a fresh single network instead. With
+`head_init: pick` the first `pick_steps` env steps try the fresh head and each training
+partner's head on the new partner instead of training, and the best one's weights start
+the new head (`head_pick`).
 
 Output: one tidy CSV, one row per evaluation point: run, method, lam, z_dim, seed,
 partner, steps, mean_return, stderr, exact_return (one-step games only).
@@ -21,18 +24,21 @@ import pandas as pd
 from ray import tune
 from ray.tune.execution.placement_groups import PlacementGroupFactory
 
-from rllib_conv import partners
+from rllib_conv import envs, partners
 from rllib_conv.config import ADAPT_DEFAULTS, SINGLE_HEAD_METHODS, AdaptConfig, ExperimentConfig, validate
 from rllib_conv.modules.multi import AGG_HEAD_ID, TASK_ID
-from rllib_conv.pipelines.algorithm import EgoSetup, build_ppo_config, setup_for
+from rllib_conv.pipelines.algorithm import EgoSetup, build_ppo_config, load_weights, push_learner_weights, setup_for, snapshot
 from rllib_conv.pipelines.checkpoints import RL_MODULE_DIR, AlgorithmCheckpoints, last_checkpoint
-from rllib_conv.pipelines.evaluate import ego_return
+from rllib_conv.pipelines.evaluate import ego_head_partner, ego_return, load_module
+from rllib_conv.pipelines.head_pick import HeadPick, pick_head
 from rllib_conv.pipelines.train import CONFIG_FILE, head_for, trial_config
 from rllib_conv.pipelines.tuning import fit
 
 PAIR_KEY = "adapt_pair"
 TUNE_PREFIX = "adapt-"  # the Tune experiment of adaptation `name` is `adapt-<name>`
 STEPS_FILE = "adapt_steps.json"
+FRESH = "fresh"  # the new partner's own (fresh) head, as a `head_pick` candidate
+PICK_SEED = 1_000_000  # head-picking episodes are seeded apart from the evaluation episodes
 CURVE_COLUMNS = ["run", "method", "lam", "z_dim", "seed", "partner", "steps", "mean_return", "stderr", "exact_return"]
 
 
@@ -58,6 +64,11 @@ def adapt_setup(cfg: AdaptConfig) -> tuple[EgoSetup, dict[str, str], ExperimentC
     game = trained.env
     if pop.env != game:
         raise ValueError(f"population {pop.name!r} is for {pop.env!r}, but the ego in {str(trial)!r} was trained on {game!r}")
+    if cfg.head_init == "pick" and trained.method in SINGLE_HEAD_METHODS:
+        raise ValueError(
+            f"head_init 'pick' needs one head per training partner, but the ego in {str(trial)!r} was trained with "
+            f"method {trained.method!r} (one shared head)"
+        )
     defaults = ADAPT_DEFAULTS.get(game, {"every": trained.ppo.rollout_per_partner, "steps": 20 * trained.ppo.rollout_per_partner})
     every = cfg.every or defaults["every"]
     ppo = trained.ppo.model_dump()
@@ -101,6 +112,25 @@ class AdaptTrainable(AlgorithmCheckpoints, tune.Trainable):
             "partner": self.cfg.partner,
         }
         self.steps = 0
+        self.offset = 0  # env steps spent picking the head, before the first update
+        self.picked: str | None = None
+
+    def _pick_head(self) -> HeadPick:
+        """Try the fresh head and every trained head on the new partner; copy the winner into the new head."""
+        entry, new_head = self.ego.train[0], head_for(self.ego, self.ego.train[0].name)
+        trained = load_module(last_checkpoint(self.cfg.run))
+        seed = self.cfg.seed + PICK_SEED
+        players = {FRESH: ego_head_partner(self.algo.env_runner.module, new_head, seed)}
+        players |= {mid: ego_head_partner(trained, mid, seed) for mid in trained.head_ids()}
+        game, env_config = self.ego.population.env, self.ego.env_config
+        budget = self.cfg.pick_steps or self.ego.exp.ppo.rollout_per_partner
+        pick = pick_head(lambda: envs.make(game, **env_config), players, entry.build, self.ego.ego_agent, self.ego.partner_agent, budget, seed)
+        if pick.chosen != FRESH:
+            weights = {new_head: snapshot(trained, (pick.chosen,))[pick.chosen]}
+            self.algo.learner_group.foreach_learner(lambda learner: load_weights(learner.module, weights))
+            push_learner_weights(self.algo)
+        self.offset = max(pick.steps, budget)
+        return pick
 
     def step(self) -> dict[str, Any]:
         entry = self.ego.train[0]
@@ -117,15 +147,19 @@ class AdaptTrainable(AlgorithmCheckpoints, tune.Trainable):
         )
         row = {**self.label, "steps": self.steps, "mean_return": r["mean"], "stderr": r["stderr"], "exact_return": r.get("exact", math.nan)}
         done = self.steps >= self.total
-        if not done:
-            self.steps = int(self.algo.train()["env_runners"]["num_env_steps_sampled_lifetime"])
-        return {**row, "done": done}
+        if not done and self.cfg.head_init == "pick" and self.picked is None:
+            self.picked = self._pick_head().chosen
+            self.steps = self.offset
+        elif not done:
+            self.steps = self.offset + int(self.algo.train()["env_runners"]["num_env_steps_sampled_lifetime"])
+        return {**row, "done": done, **({"picked": self.picked} if self.picked else {})}
 
     def save_extra(self, checkpoint_dir: Path) -> None:
-        (checkpoint_dir / STEPS_FILE).write_text(json.dumps({"steps": self.steps}))
+        (checkpoint_dir / STEPS_FILE).write_text(json.dumps({"steps": self.steps, "offset": self.offset, "picked": self.picked}))
 
     def load_extra(self, checkpoint_dir: Path) -> None:
-        self.steps = json.loads((checkpoint_dir / STEPS_FILE).read_text())["steps"]
+        saved = json.loads((checkpoint_dir / STEPS_FILE).read_text())
+        self.steps, self.offset, self.picked = saved["steps"], saved.get("offset", 0), saved.get("picked")
 
     def cleanup(self) -> None:
         self.algo.stop()

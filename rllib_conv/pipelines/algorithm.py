@@ -6,6 +6,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+import torch
 from ray.rllib.algorithms.ppo import PPOConfig
 from ray.rllib.core import COMPONENT_LEARNER, COMPONENT_RL_MODULE
 from ray.rllib.core.rl_module.multi_rl_module import MultiRLModuleSpec
@@ -185,3 +186,19 @@ def push_learner_weights(algo: Any) -> None:
     # weights changed outside an update (MAML's outer step, a reset layer) keep the old one.
     module_state = {COMPONENT_RL_MODULE: state[COMPONENT_LEARNER][COMPONENT_RL_MODULE]}
     algo.env_runner_group.sync_env_runner_states(config=algo.config, rl_module_state=module_state)
+
+
+Weights = dict[str, dict[str, torch.Tensor]]  # module ID -> state dict
+
+
+def snapshot(module: Any, module_ids: tuple[str, ...]) -> Weights:
+    """A detached copy of the weights of `module_ids` in a MultiRLModule."""
+    return {mid: {k: v.detach().clone() for k, v in module[mid].state_dict().items()} for mid in module_ids}
+
+
+def load_weights(module: Any, weights: Weights) -> None:
+    """Write `weights` into the MultiRLModule's sub-modules in place (optimizers keep their tensors)."""
+    with torch.no_grad():
+        for mid, params in weights.items():
+            for k, v in module[mid].state_dict().items():
+                v.copy_(params[k])

@@ -10,31 +10,15 @@ from __future__ import annotations
 
 from typing import Any
 
-import torch
-
 from rllib_conv.modules.multi import AGG_HEAD_ID, TASK_ID
-from rllib_conv.pipelines.algorithm import push_learner_weights
+from rllib_conv.pipelines.algorithm import Weights, load_weights, push_learner_weights, snapshot
 
 META_MODULES = (TASK_ID, AGG_HEAD_ID)
-Weights = dict[str, dict[str, torch.Tensor]]
 
 
 def outer_update(theta: Weights, adapted: Weights, step: float) -> Weights:
     """Return theta + step * (adapted - theta), tensor by tensor."""
     return {mid: {k: t + step * (adapted[mid][k] - t) for k, t in params.items()} for mid, params in theta.items()}
-
-
-def snapshot(module: Any, module_ids: tuple[str, ...] = META_MODULES) -> Weights:
-    """A detached copy of the weights of `module_ids` in a MultiRLModule."""
-    return {mid: {k: v.detach().clone() for k, v in module[mid].state_dict().items()} for mid in module_ids}
-
-
-def load(module: Any, weights: Weights) -> None:
-    """Write `weights` into the MultiRLModule's sub-modules in place (optimizers keep their tensors)."""
-    with torch.no_grad():
-        for mid, params in weights.items():
-            for k, v in module[mid].state_dict().items():
-                v.copy_(params[k])
 
 
 class MetaTrainer:
@@ -52,12 +36,12 @@ class MetaTrainer:
         """One outer step; returns the last inner iteration's RLlib result."""
         partner = self.partners[self.outer_steps % len(self.partners)]
         # One learner (or identical copies): the first result is the meta-weights.
-        theta = next(iter(self.algo.learner_group.foreach_learner(lambda learner: snapshot(learner.module)))).get()
+        theta = next(iter(self.algo.learner_group.foreach_learner(lambda learner: snapshot(learner.module, META_MODULES)))).get()
         self._focus(partner)
         for _ in range(self.inner_iterations):
             result = self.algo.train()
         step = self.outer_step
-        self.algo.learner_group.foreach_learner(lambda learner: load(learner.module, outer_update(theta, snapshot(learner.module), step)))
+        self.algo.learner_group.foreach_learner(lambda learner: load_weights(learner.module, outer_update(theta, snapshot(learner.module, META_MODULES), step)))
         push_learner_weights(self.algo)
         self._focus(None)
         self.outer_steps += 1

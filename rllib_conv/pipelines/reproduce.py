@@ -7,7 +7,7 @@ lands under `<out>/<game>/`:
 |---|---|---|
 | `selfplay` | self-play partner populations | `populations/<name>/` |
 | `train` | egos: every method x lam x population x seed | `runs/<experiment>/` |
-| `adapt` | adaptation curves to test partners, `scratch` included | `adaptation/<experiment>.csv` |
+| `adapt` | adaptation curves to test partners, the adapt-only variants (`scratch`, ...) included | `adaptation/<experiment>.csv` |
 | `zeroshot` | the three zero-shot steps (bandit, blocks) | `zeroshot/<experiment>.csv` |
 | `marginals` | task-module distance to the true marginals | `marginals.csv` |
 
@@ -93,6 +93,22 @@ ZEROSHOT_METHODS = [MODULAR_05, Method("no_task_logits", {"method": "no_task_log
 
 
 @dataclass
+class AdaptVariant:
+    """Adaptation only: adaptation `settings` applied to the trained egos of `base` (nothing more is trained)."""
+
+    label: str
+    base: Method
+    settings: dict[str, Any]
+
+
+# `scratch` only borrows the modular egos' seeds: it adapts a fresh network.
+SCRATCH = AdaptVariant("scratch", MODULAR_05, {"method": "scratch"})
+# Not in the paper: adapt from the best of the fresh head and the training partners' heads.
+HEAD_PICK_05 = AdaptVariant("modular-lam0.5-pick", MODULAR_05, {"head_init": "pick"})
+HEAD_PENALTY_PICK_05 = AdaptVariant("modular-lam0.5-hl0.01-pick", HEAD_PENALTY_05, {"head_init": "pick"})
+
+
+@dataclass
 class Plan:
     """What to run for one game at one scale."""
 
@@ -104,6 +120,8 @@ class Plan:
     population_overrides: dict[str, dict[str, Any]] = field(default_factory=dict)  # training settings per population
     zeroshot_populations: list[str] = field(default_factory=list)
     zeroshot_methods: list[Method] = field(default_factory=lambda: list(ZEROSHOT_METHODS))
+    # Run for every population whose methods include their base (`modular-lam0.5` always does).
+    adapt_variants: list[AdaptVariant] = field(default_factory=lambda: [SCRATCH])
     # Populations left out of the marginals: their partners' conventions are not uniform over
     # optimal actions (the user-study participants prefer some arms), so the distance to that
     # uniform distribution measures nothing the regulariser aims at.
@@ -171,6 +189,7 @@ def _plan(game: str, seeds: int, quick: bool) -> Plan:
             selfplay_methods=[*CORE_METHODS, HEAD_PENALTY_05],
             zeroshot_populations=["blocks-perm"],
             zeroshot_methods=[*ZEROSHOT_METHODS, HEAD_PENALTY_05],
+            adapt_variants=[SCRATCH, HEAD_PICK_05, HEAD_PENALTY_PICK_05],
             adapt_partners=6,
         )
     return Plan(game=game, seeds=seed_list, populations={}, selfplay=[{"name": "hanabi-selfplay"}], selfplay_methods=HANABI_METHODS, adapt_partners=4)
@@ -254,6 +273,11 @@ class Reproduction:
         """Every (population, method) whose egos this plan trains."""
         return [(p, m) for p, ms in self.populations().items() for m in ms]
 
+    def variants(self, methods: list[Method]) -> list[AdaptVariant]:
+        """The plan's adapt-only variants whose base egos are among `methods`."""
+        labels = {m.label for m in methods}
+        return [v for v in self.plan.adapt_variants if v.base.label in labels]
+
     def stage_train(self) -> None:
         for population, method in self.trained():
             results = run(config.from_dict(self.experiment(population, method)), storage=self.runs, address=self.address)
@@ -264,9 +288,9 @@ class Reproduction:
         for population, methods in self.populations().items():
             pop = partners.get(population)
             names = [e.name for e in pop.entries("test")][: self.plan.adapt_partners]
-            modular = self.runs / self.experiment(population, MODULAR_05)["name"]
             jobs = [(self.experiment(population, m)["name"], {}) for m in methods]
-            jobs.append((f"{Path(population).name}__scratch", {"method": "scratch", "runs": [str(modular)]}))
+            for v in self.variants(methods):
+                jobs.append((f"{Path(population).name}__{v.label}", {**v.settings, "runs": [str(self.runs / self.experiment(population, v.base)["name"])]}))
             for name, extra in jobs:
                 if (self.root / "adaptation" / f"{name}.csv").is_file():
                     continue
@@ -358,7 +382,7 @@ class Reproduction:
         return {
             "selfplay": [sp["name"] for sp in self.plan.selfplay],
             "train": trained,
-            "adapt": [*trained, *(f"{Path(p).name}__scratch" for p in self.populations())],
+            "adapt": [*trained, *(f"{Path(p).name}__{v.label}" for p, ms in self.populations().items() for v in self.variants(ms))],
             "zeroshot": zeroshot,
             "marginals": sorted(n for n in {*trained, *zeroshot} if self.has_marginals(n)),
         }[stage]

@@ -152,6 +152,29 @@ def test_methods_beyond_the_paper_are_listed_but_left_out_of_its_claims(tmp_path
     assert "ours λ=0.5 + head penalty (`modular-lam0.5-hl0.01`) is not in the paper" in text
 
 
+def test_extensions_are_judged_against_the_baselines_apart_from_the_papers_claim(tmp_path: Path) -> None:
+    game = tmp_path / "repro" / "blocks"
+    (game / "adaptation").mkdir(parents=True)
+    (game / "plan.json").write_text('{"game": "blocks", "seeds": [0, 1, 2], "quick": false}')
+    # Flat curves (AUC = the return), six per method: three at value - 0.1, three at value + 0.1.
+    # Mean = value, sd = 0.10954, half-width 2.5706 * 0.10954 / sqrt(6) = 0.115.
+    methods = (("modular-lam0.5", "modular", 14.5), ("agg", "agg", 15.0), ("oracle", "oracle", 15.5), ("modular-lam0.5-pick", "modular", 16.0))
+    for label, method, value in methods:
+        rows = ["run,method,lam,z_dim,seed,partner,steps,mean_return,stderr,exact_return"]
+        for i in range(6):
+            r = value + (0.1 if i % 2 else -0.1)
+            rows += [f"runs/blocks-selfplay__{label}/T{i // 2},{method},0.5,80,{i // 2},sp0{6 + i % 2},{step},{r},0.1," for step in (0, 640)]
+        (game / "adaptation" / f"blocks-selfplay__{label}.csv").write_text("\n".join(rows) + "\n")
+    text = build_report(tmp_path / "repro", tmp_path / "out").read_text()
+    assert "| Blocks (self-play) | contradicted | best regularised: ours λ=0.5 AUC 14.500; BaselineAgg 15.000; not above BaselineAgg |" in text
+    assert (
+        "| Blocks (self-play) | ours λ=0.5, adapting from a picked head | supported | AUC 16.00 [15.89, 16.11] (n=6); "
+        "BaselineAgg 15.00 [14.89, 15.11] (n=6) |"
+    ) in text
+    assert "| Blocks (self-play) | supported | oracle AUC 15.500; no method above it |" in text  # the extension is not the paper's
+    assert "(`modular-lam0.5-pick`) is not in the paper" in text
+
+
 def test_empty_root_and_recorded_sessions(tmp_path: Path) -> None:
     sessions = tmp_path / "sessions"
     sessions.mkdir()

@@ -11,8 +11,8 @@ import torch
 from rllib_conv.config import AdaptConfig, ExperimentConfig
 from rllib_conv.modules import AGG_HEAD_ID, TASK_ID, ego_id
 from rllib_conv.pipelines.adapt import CURVE_COLUMNS, adapt_setup, run_adaptation
-from rllib_conv.pipelines.algorithm import build_ppo_config, resolve
-from rllib_conv.pipelines.maml import META_MODULES, MetaTrainer, outer_update, snapshot
+from rllib_conv.pipelines.algorithm import build_ppo_config, resolve, snapshot
+from rllib_conv.pipelines.maml import META_MODULES, MetaTrainer, outer_update
 from rllib_conv.pipelines.zeroshot import run_zeroshot
 from tests.helpers import digest
 
@@ -113,25 +113,25 @@ def test_one_maml_outer_step_moves_weights_by_outer_step_times_adaptation(ray_se
     try:
         learner_module = algo.learner_group._learner.module
         trainer = MetaTrainer(algo, [e.name for e in setup.train], inner_iterations=4, outer_step=0.25)
-        theta = snapshot(learner_module)
+        theta = snapshot(learner_module, META_MODULES)
         adapted = {}
         real_train = algo.train
 
         def train_and_record():
             result = real_train()
-            adapted.update(snapshot(learner_module))  # the weights after the latest inner iteration
+            adapted.update(snapshot(learner_module, META_MODULES))  # the weights after the latest inner iteration
             return result
 
         algo.train = train_and_record
         result = trainer.step()
         expected = outer_update(theta, adapted, 0.25)
-        after = snapshot(learner_module)
+        after = snapshot(learner_module, META_MODULES)
         for mid in META_MODULES:
             for k in theta[mid]:
                 torch.testing.assert_close(after[mid][k], expected[mid][k])
                 assert not torch.equal(after[mid][k], adapted[mid][k]) or torch.equal(theta[mid][k], adapted[mid][k])
         # The env runners got the meta-weights too.
-        runner = snapshot(algo.env_runner.module)
+        runner = snapshot(algo.env_runner.module, META_MODULES)
         for mid in META_MODULES:
             for k in theta[mid]:
                 torch.testing.assert_close(runner[mid][k], after[mid][k])

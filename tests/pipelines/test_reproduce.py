@@ -35,6 +35,22 @@ def test_blocks_plan_adds_ours_with_the_head_penalty() -> None:
     assert narrowed.stage_experiments("zeroshot") == [f"blocks-perm__{m}" for m in ("modular-lam0.5", "no_task_logits", "modular-lam0.5-hl0.01")]
 
 
+def test_blocks_plan_adapts_ours_from_a_picked_head_too() -> None:
+    plan = plan_for("blocks")
+    assert [(v.label, v.base.label, v.settings) for v in plan.adapt_variants] == [
+        ("scratch", "modular-lam0.5", {"method": "scratch"}),
+        ("modular-lam0.5-pick", "modular-lam0.5", {"head_init": "pick"}),
+        ("modular-lam0.5-hl0.01-pick", "modular-lam0.5-hl0.01", {"head_init": "pick"}),
+    ]
+    assert [v.label for v in plan_for("bandit").adapt_variants] == ["scratch"]
+    # Adapt-only variants train nothing; each runs where its base egos are in the (narrowed) plan.
+    narrowed = Reproduction(narrow(plan, ["blocks-perm", "blocks-selfplay"], ["agg"]), Path("unused"))
+    trained = [f"{p}__{m}" for p in ("blocks-perm", "blocks-selfplay") for m in ("modular-lam0.5", "agg")]
+    assert narrowed.stage_experiments("adapt") == [*trained, *(f"{p}__{v}" for p in ("blocks-perm", "blocks-selfplay") for v in ("scratch", "modular-lam0.5-pick"))]
+    full = Reproduction(plan_for("blocks"), Path("unused")).stage_experiments("adapt")
+    assert "blocks-selfplay__modular-lam0.5-hl0.01-pick" in full and "blocks-perm__modular-lam0.5-hl0.01-pick" in full
+
+
 @pytest.mark.parametrize(
     ("populations", "methods", "match"),
     [
