@@ -9,7 +9,7 @@ lands under `<out>/<game>/`:
 | `train` | egos: every method x lam x population x seed | `runs/<experiment>/` |
 | `adapt` | adaptation curves to test partners, the adapt-only variants (`scratch`, ...) included | `adaptation/<experiment>.csv` |
 | `zeroshot` | the three zero-shot steps (bandit, blocks) | `zeroshot/<experiment>.csv` |
-| `marginals` | task-module distance to the true marginals | `marginals.csv` |
+| `marginals` | task-module distance to the true marginals, every finished ego in `runs/` | `marginals.csv` |
 
 A finished stage leaves `<stage>.done`: its wall time, then the experiments it covered.
 Running the command again skips a stage whose marker covers everything the plan asks of it;
@@ -44,10 +44,10 @@ from analysis.loaders import split_experiment
 from rllib_conv import config, partners
 from rllib_conv.config import GAME_DEFAULTS, SelfPlayConfig
 from rllib_conv.pipelines.adapt import TUNE_PREFIX as ADAPT_PREFIX
-from rllib_conv.pipelines.adapt import run_adaptation, trial_folders
+from rllib_conv.pipelines.adapt import run_adaptation
 from rllib_conv.pipelines.marginals import marginal_report
 from rllib_conv.pipelines.selfplay import train_population
-from rllib_conv.pipelines.train import CONFIG_FILE, run
+from rllib_conv.pipelines.train import EVAL_FILE, run
 from rllib_conv.pipelines.zeroshot import TUNE_PREFIX as ZEROSHOT_PREFIX
 from rllib_conv.pipelines.zeroshot import run_zeroshot
 
@@ -314,7 +314,9 @@ class Reproduction:
 
     def stage_marginals(self) -> None:
         experiments = [e for e in sorted(self.runs.glob("*__*")) if self.has_marginals(e.name)]
-        trials = [t for exp in experiments if any(exp.glob(f"*/{CONFIG_FILE}")) for t in trial_folders(exp)]
+        # Finished trials only (their eval.json is written when training ends): another
+        # process may be training an experiment in the same folder.
+        trials = [t.parent for exp in experiments for t in sorted(exp.glob(f"*/{EVAL_FILE}"))]
         table = marginal_report(trials)
         table["experiment"] = [Path(r).parent.name for r in table["run"]]
         table.to_csv(self.root / "marginals.csv", index=False)

@@ -10,7 +10,7 @@ import pytest
 
 from rllib_conv.cli import main
 from rllib_conv.pipelines.reproduce import MODULAR_05, Reproduction, narrow, plan_for, read_marker
-from rllib_conv.pipelines.train import CONFIG_FILE
+from rllib_conv.pipelines.train import CONFIG_FILE, EVAL_FILE
 
 
 def test_narrow_keeps_the_named_populations_and_methods() -> None:
@@ -132,14 +132,16 @@ def test_a_marker_without_items_covers_nothing(tmp_path, monkeypatch) -> None:
     assert calls == ["bandit"] and seconds >= 12.5 and len(covered) == 2
 
 
-def test_marginals_leave_out_populations_whose_conventions_are_not_uniform(tmp_path, monkeypatch) -> None:
+def test_marginals_leave_out_unfinished_trials_and_populations_whose_conventions_are_not_uniform(tmp_path, monkeypatch) -> None:
     plan = narrow(plan_for("bandit"), ["bandit-s2-hand", "bandit-user-study"], ["agg"])
     repro = Reproduction(plan, tmp_path, log=lambda _: None)
     assert repro.stage_items("marginals") == [f"bandit-s2-hand__{m} seeds=0,1,2" for m in ("agg", "modular-lam0.5", "no_task_logits")]
     assert len(repro.stage_items("train")) == 4  # the user-study egos are still trained and adapted
-    for name in ("bandit-s2-hand__agg", "bandit-user-study__agg"):
+    for name in ("bandit-s2-hand__agg", "bandit-user-study__agg", "bandit-s2-hand__maml"):
         (tmp_path / "runs" / name / "trial_0").mkdir(parents=True)
         (tmp_path / "runs" / name / "trial_0" / CONFIG_FILE).write_text("{}")
+    for name in ("bandit-s2-hand__agg", "bandit-user-study__agg"):  # maml is still training: no eval.json yet
+        (tmp_path / "runs" / name / "trial_0" / EVAL_FILE).write_text("{}")
     seen: list[str] = []
     monkeypatch.setattr("rllib_conv.pipelines.reproduce.marginal_report", lambda trials: seen.extend(t.parent.name for t in trials) or pd.DataFrame({"run": [str(t) for t in trials]}))
     repro.stage_marginals()
