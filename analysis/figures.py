@@ -80,11 +80,10 @@ def _legend_below(fig: Figure, axes: Sequence[plt.Axes]) -> None:
         for h, lab in zip(*ax.get_legend_handles_labels()):
             if lab not in labels:
                 handles[lab], labels[lab] = h, lab
+    fig.tight_layout()
     if handles:
-        fig.legend(list(handles.values()), list(labels.values()), loc="lower center", ncol=min(5, len(handles)), frameon=False, bbox_to_anchor=(0.5, -0.02))
-        fig.tight_layout(rect=(0, 0.08 if len(handles) <= 5 else 0.13, 1, 1))
-    else:
-        fig.tight_layout()
+        # Below the figure, whatever its rows: `save` crops to the drawn content, legend included.
+        fig.legend(list(handles.values()), list(labels.values()), loc="upper center", ncol=min(5, len(handles)), frameon=False, bbox_to_anchor=(0.5, 0.0))
 
 
 def _band_plot(ax: plt.Axes, band: pd.DataFrame, x: str) -> None:
