@@ -13,7 +13,9 @@ the new partner: the adaptation curve charges them as env steps.
 The trade-off: a head that is only partly right wins the pick (it beats the marginals at
 first) but is sharp, and PPO moves it away from the wrong part of its convention slowly.
 It pays where new partners share whole conventions with training ones (blocks self-play
-partners), and costs where they do not (blocks hand-designed partners: see the README).
+partners) and costs where they do not (blocks hand-designed partners), unless the heads
+were trained with the head penalty (`head_l2`), which keeps them small enough to move
+(the README's benchmark table has the numbers).
 """
 
 from __future__ import annotations
