@@ -123,7 +123,7 @@ def _cmd_adapt(args: argparse.Namespace) -> None:
 
     raw = {"name": args.name, "runs": args.runs, "split": args.split, "train_task": not args.frozen_task, "head_init": args.head_init}
     options = {"population": args.population, "partners": args.partner, "method": args.method, "pick_steps": args.pick_steps}
-    raw.update({k: v for k, v in options.items() if v})
+    raw.update({k: v for k, v in options.items() if v is not None})
     raw = config.from_dict(raw, args.set, schema=config.AdaptConfig)
     curves = run_adaptation(raw, out=args.out, storage=args.storage, address=args.address)
     summary = curves.groupby(["method", "lam", "steps"])[["mean_return", "exact_return"]].mean().unstack("steps")

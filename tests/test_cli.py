@@ -28,6 +28,13 @@ def test_bad_config_exits_2_with_one_line_and_writes_nothing(tmp_path, capsys) -
     assert not storage.exists()
 
 
+def test_adapt_rejects_a_zero_pick_budget_before_anything_runs(tmp_path, capsys) -> None:
+    out, storage = tmp_path / "curves", tmp_path / "runs"
+    assert main(["adapt", str(tmp_path), "--head-init", "pick", "--pick-steps", "0", "--out", str(out), "--storage", str(storage)]) == 2
+    assert "pick_steps: Input should be greater than 0" in capsys.readouterr().err  # not silently the default
+    assert not out.exists() and not storage.exists()
+
+
 def test_unknown_population_is_reported_before_training(tmp_path, capsys) -> None:
     path = tmp_path / "exp.yaml"
     path.write_text(yaml.safe_dump({"name": "x", "population": {"grid_search": ["bandit-s2-hand", "no-such-population"]}}))
