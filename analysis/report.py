@@ -292,10 +292,16 @@ def _verdict(outcomes: list[str]) -> str:
     return "contradicted" if "no" in outcomes else "not shown (intervals overlap)"
 
 
-def _adaptation_claims(ctx: Context, auc: pd.DataFrame) -> list[ClaimCheck]:
+def _against(p: pd.DataFrame, label: str, others: list[str]) -> dict[str, str]:
+    """`_better`'s outcome of `label` against each of `others` (rows of one population's AUC summary, by label)."""
+    a = (p.at[label, "mean"], p.at[label, "lo"], p.at[label, "hi"])
+    return {lab: _better(a, (p.at[lab, "mean"], p.at[lab, "lo"], p.at[lab, "hi"])) for lab in others}
+
+
+def _adaptation_claims(ctx: Context, per: pd.DataFrame) -> list[ClaimCheck]:
+    """The paper's adaptation claims, checked on `per` (AUC summarised by game, population and label)."""
     checks = []
     claims = {c.key: c for c in paper.ADAPTATION_CLAIMS}
-    per = summarise(auc, ["game", "population", "label"], "auc") if not auc.empty else pd.DataFrame(columns=["game", "population", "label", "mean", "lo", "hi", "n"])
     for population in sorted(per["population"].unique()):
         p = per[per["population"] == population].set_index("label")
         ours = [lab for lab in REGULARISED if lab in p.index]
@@ -305,9 +311,8 @@ def _adaptation_claims(ctx: Context, auc: pd.DataFrame) -> list[ClaimCheck]:
             checks.append(ClaimCheck(claims["regularised-best"], scope, "undetermined", f"needs a regularised method and a baseline; have {', '.join(map(label_name, p.index))}", game))
         else:
             best = max(ours, key=lambda lab: p.at[lab, "mean"])
-            b = (p.at[best, "mean"], p.at[best, "lo"], p.at[best, "hi"])
-            outcomes = {lab: _better(b, (p.at[lab, "mean"], p.at[lab, "lo"], p.at[lab, "hi"])) for lab in base}
-            evidence = f"best regularised: {label_name(best)} AUC {b[0]:.3f}; " + ", ".join(f"{label_name(lab)} {p.at[lab, 'mean']:.3f}" for lab in base)
+            outcomes = _against(p, best, base)
+            evidence = f"best regularised: {label_name(best)} AUC {p.at[best, 'mean']:.3f}; " + ", ".join(f"{label_name(lab)} {p.at[lab, 'mean']:.3f}" for lab in base)
             verdict = _verdict(list(outcomes.values()))
             beaten_by = [label_name(lab) for lab, v in outcomes.items() if v in ("tie", "no")]
             if beaten_by:
@@ -398,27 +403,25 @@ def _adaptation_section(ctx: Context) -> str:
             rows.append([label_name(label), f"{start.value:g}", c0.row()[2], f"{end.value:g}" + (f" ({end.note})" if end.note else ""), c1.row()[2], "; ".join(x for x in (c0.verdict, c1.verdict, note) if x)])
         lines.append(md_table(["method", "released code, step 0", "ours, step 0", "released code, step 240", "ours, last step", "verdict"], rows))
 
-    checks = _adaptation_claims(ctx, auc)
+    per = summarise(auc, ["game", "population", "label"], "auc")
+    checks = _adaptation_claims(ctx, per)
     ctx.claims += checks
     lines += _claims_block("adaptation", paper.ADAPTATION_CLAIMS, checks)
-    lines += _extensions_block(auc)
+    lines += _extensions_block(per)
     return "\n".join(lines)
 
 
-def _extensions_block(auc: pd.DataFrame) -> list[str]:
+def _extensions_block(per: pd.DataFrame) -> list[str]:
     """Markdown lines: each extension of ours (not in the paper) against the baselines, judged as the paper's claim is."""
-    per = summarise(auc, ["game", "population", "label"], "auc").set_index(["population", "label"])
     rows = []
-    for (population, label), r in per.iterrows():
-        base = [per.loc[(population, b)] for b in BASELINES if (population, b) in per.index]
-        if label not in EXTENSIONS or not base:
-            continue
-        verdict = _verdict([_better((r["mean"], r["lo"], r["hi"]), (b["mean"], b["lo"], b["hi"])) for b in base])
-        d = _digits(r["game"])
-        evidence = f"AUC {fmt_ci(r['mean'], r['lo'], r['hi'], r['n'], d)}; " + ", ".join(
-            f"{label_name(b.name[1])} {fmt_ci(b['mean'], b['lo'], b['hi'], b['n'], d)}" for b in base
-        )
-        rows.append([population_name(population), label_name(label), verdict, evidence])
+    for population in sorted(per["population"].unique()):
+        p = per[per["population"] == population].set_index("label")
+        base = [lab for lab in BASELINES if lab in p.index]
+        for label in (lab for lab in sorted(p.index) if lab in EXTENSIONS and base):
+            d = _digits(p.at[label, "game"])
+            ci = {lab: fmt_ci(p.at[lab, "mean"], p.at[lab, "lo"], p.at[lab, "hi"], p.at[lab, "n"], d) for lab in (label, *base)}
+            evidence = f"AUC {ci[label]}; " + ", ".join(f"{label_name(lab)} {ci[lab]}" for lab in base)
+            rows.append([population_name(population), label_name(label), _verdict(list(_against(p, label, base).values())), evidence])
     if not rows:
         return []
     return ["", "### Extensions of ours (not in the paper) against the same baselines", "", md_table(["population", "method", "adapts faster than every baseline?", "evidence"], rows), ""]

@@ -27,7 +27,7 @@ from ray.tune.execution.placement_groups import PlacementGroupFactory
 from rllib_conv import envs, partners
 from rllib_conv.config import ADAPT_DEFAULTS, SINGLE_HEAD_METHODS, AdaptConfig, ExperimentConfig, validate
 from rllib_conv.modules.multi import AGG_HEAD_ID, TASK_ID
-from rllib_conv.pipelines.algorithm import EgoSetup, build_ppo_config, load_weights, push_learner_weights, setup_for, snapshot
+from rllib_conv.pipelines.algorithm import EgoSetup, build_ppo_config, load_weights, push_learner_weights, setup_for
 from rllib_conv.pipelines.checkpoints import RL_MODULE_DIR, AlgorithmCheckpoints, last_checkpoint
 from rllib_conv.pipelines.evaluate import ego_head_partner, ego_return, load_module
 from rllib_conv.pipelines.head_pick import HeadPick, pick_head
@@ -126,7 +126,7 @@ class AdaptTrainable(AlgorithmCheckpoints, tune.Trainable):
         budget = self.cfg.pick_steps or self.ego.exp.ppo.rollout_per_partner
         pick = pick_head(lambda: envs.make(game, **env_config), players, entry.build, self.ego.ego_agent, self.ego.partner_agent, budget, seed)
         if pick.chosen != FRESH:
-            weights = {new_head: snapshot(trained, (pick.chosen,))[pick.chosen]}
+            weights = {new_head: trained[pick.chosen].state_dict()}
             self.algo.learner_group.foreach_learner(lambda learner: load_weights(learner.module, weights))
             push_learner_weights(self.algo)
         self.offset = max(pick.steps, budget)
