@@ -3,9 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import os
-
-os.environ.setdefault("OMP_NUM_THREADS", "1")  # the user-study loader imports torch; one thread is plenty
 
 
 def main(argv: list[str] | None = None) -> None:

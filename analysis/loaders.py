@@ -1,7 +1,7 @@
 """Read a reproduction's folders into tidy pandas DataFrames, from files on disk only.
 
-`rllib-conv reproduce GAME --out ROOT` writes `ROOT/<game>/` (see
-`rllib_conv.pipelines.reproduce`). Every loader here takes either such a ROOT (all game
+`rllib-conv reproduce GAME --out ROOT` writes `ROOT/<game>/` (its layout is written down
+in `rllib_conv.common.run_folders`, which both the writers and this module use). Every loader here takes either such a ROOT (all game
 folders under it) or one game folder, never starts Ray or loads a checkpoint, and returns
 an empty frame with the documented columns when the files are absent, so a report can
 be built from a partial or still-running reproduction.
@@ -20,21 +20,38 @@ from pathlib import Path
 from typing import Any, Iterable
 
 import pandas as pd
-import yaml
 
-STAGES: tuple[str, ...] = ("selfplay", "train", "adapt", "zeroshot", "marginals")
-# Experiment folders under runs/ that are Tune internals of later stages, not trained egos.
-AUX_PREFIXES: tuple[str, ...] = ("adapt-", "zeroshot-", "selfplay-")
+from rllib_conv.common.resources import user_study_csv
+from rllib_conv.common.run_folders import (
+    ADAPTATION_DIR,
+    CONFIG_FILE,
+    CROSSPLAY_DIR,
+    EVAL_FILE,
+    EXPERIMENT_SEPARATOR,
+    GAME_MARKERS,
+    MARGINALS_FILE,
+    MARKER_SUFFIX,
+    PLAN_FILE,
+    POPULATIONS_DIR,
+    RUNS_DIR,
+    SELFPLAY_REPORT_FILE,
+    STAGE_PREFIXES,
+    STAGES,
+    ZEROSHOT_DIR,
+    expected_stages,
+    marker_path,
+    read_trial_config,
+    split_experiment,
+)
+from rllib_conv.common.user_study_table import load_user_study
+
 # Columns that may hold the environment-step counter, in order of preference (ours, new RLlib API, old Tune).
 STEP_COLUMNS: tuple[str, ...] = ("env_steps", "num_env_steps_sampled_lifetime", "timesteps_total")
 # Highest score per game: 1 coordinated pull; 2 blocks x 10 points; 5 Hanabi cards.
 MAX_SCORE: dict[str, float] = {"bandit": 1.0, "blocks": 20.0, "hanabi": 5.0}
 
-_GAME_MARKERS = ("plan.json", "runs", "adaptation", "zeroshot", "marginals.csv", "populations")
-
-
 def _is_game_dir(path: Path) -> bool:
-    return path.is_dir() and (any((path / m).exists() for m in _GAME_MARKERS) or any(path.glob("*.done")))
+    return path.is_dir() and (any((path / m).exists() for m in GAME_MARKERS) or any(path.glob(f"*{MARKER_SUFFIX}")))
 
 
 def game_dirs(root: str | Path) -> list[Path]:
@@ -50,7 +67,7 @@ def game_dirs(root: str | Path) -> list[Path]:
 def read_plan(game_dir: str | Path) -> dict[str, Any]:
     """plan.json of a game folder ({"game", "seeds", "quick"}); with no file, {"game": <folder name>}."""
     game_dir = Path(game_dir)
-    path = game_dir / "plan.json"
+    path = game_dir / PLAN_FILE
     plan = json.loads(path.read_text()) if path.is_file() else {}
     plan.setdefault("game", game_dir.name)
     return plan
@@ -59,12 +76,6 @@ def read_plan(game_dir: str | Path) -> dict[str, Any]:
 def game_of(game_dir: str | Path) -> str:
     """The game a folder holds (plan.json's `game`, else the folder name)."""
     return str(read_plan(game_dir)["game"])
-
-
-def split_experiment(name: str) -> tuple[str, str]:
-    """Split an experiment or file stem `<population>__<label>` into (population, label); no `__` gives (name, "")."""
-    population, sep, label = name.partition("__")
-    return (population, label) if sep else (name, "")
 
 
 def _empty(columns: Iterable[str]) -> pd.DataFrame:
@@ -81,29 +92,16 @@ def _concat(frames: list[pd.DataFrame], columns: Iterable[str]) -> pd.DataFrame:
 STAGE_COLUMNS = ["game", "stage", "expected", "done", "seconds"]
 
 
-def expected_stages(game: str, quick: bool = False) -> tuple[str, ...]:
-    """The stages `rllib-conv reproduce` runs for `game` (mirrors `Reproduction.stages`; read here so that no Ray import is needed).
-
-    Zero-shot needs a new task with the same partners: bandit, and blocks except in the
-    quick plan; Hanabi has neither zero-shot nor marginals (no oracle).
-    """
-    stages = ["selfplay", "train", "adapt"]
-    if game == "bandit" or (game == "blocks" and not quick):
-        stages.append("zeroshot")
-    if game in ("bandit", "blocks"):
-        stages.append("marginals")
-    return tuple(stages)
-
-
 def load_stage_times(root: str | Path) -> pd.DataFrame:
     """One row per (game, stage) of `STAGES`: whether the game's plan has it, whether its `<stage>.done` marker exists, and the wall seconds it records."""
     rows = []
     for game_dir in game_dirs(root):
         plan = read_plan(game_dir)
         game = str(plan["game"])
-        expected = expected_stages(game, bool(plan.get("quick", False)))
+        # Reproductions record their stages in plan.json; older ones ran the fixed plans of their game.
+        expected = plan.get("stages") or expected_stages(game, bool(plan.get("quick", False)))
         for stage in STAGES:
-            marker = game_dir / f"{stage}.done"
+            marker = marker_path(game_dir, stage)
             seconds = float("nan")
             if marker.is_file():
                 # The marker's text is the stage's wall time, written as "123.4 s".
@@ -120,21 +118,21 @@ TRIAL_COLUMNS = ["game", "experiment", "population", "label", "trial", "run", "m
 
 def trial_dirs(game_dir: str | Path) -> list[Path]:
     """The trained-ego trial folders of a game folder: `runs/<population>__<label>/<trial>/` holding a config.yaml."""
-    runs = Path(game_dir) / "runs"
+    runs = Path(game_dir) / RUNS_DIR
     if not runs.is_dir():
         return []
     return sorted(
         t.parent
         for exp in runs.iterdir()
-        if exp.is_dir() and "__" in exp.name and not exp.name.startswith(AUX_PREFIXES)
-        for t in exp.glob("*/config.yaml")
+        if exp.is_dir() and EXPERIMENT_SEPARATOR in exp.name and not exp.name.startswith(STAGE_PREFIXES)
+        for t in exp.glob(f"*/{CONFIG_FILE}")
     )
 
 
 def trial_info(trial: str | Path, game: str | None = None) -> dict[str, Any]:
     """The identifiers of one trial folder (see `TRIAL_COLUMNS`), read from its path and config.yaml."""
     trial = Path(trial)
-    cfg = yaml.safe_load((trial / "config.yaml").read_text()) or {}
+    cfg = read_trial_config(trial)
     population, label = split_experiment(trial.parent.name)
     if not label:  # not a reproduce experiment (`<population>__<label>`): a sweep's trial names its population itself
         population = str(cfg.get("population", population))
@@ -197,7 +195,7 @@ def load_sweep(experiment: str | Path) -> pd.DataFrame:
     (population, method, lam, seed, z_dim) come from each trial's config.yaml. ValueError
     if the folder holds no trial.
     """
-    trials = sorted(p.parent for p in Path(experiment).glob("*/config.yaml"))
+    trials = sorted(p.parent for p in Path(experiment).glob(f"*/{CONFIG_FILE}"))
     if not trials:
         raise ValueError(f"{str(experiment)!r} holds no trained-ego trial (no */config.yaml); expected a sweep's STORAGE/NAME folder")
     return _concat([_trial_curve(t) for t in trials], [*TRIAL_COLUMNS, "steps", "training_iteration"])
@@ -231,7 +229,7 @@ def load_evals(root: str | Path) -> pd.DataFrame:
     for game_dir in game_dirs(root):
         game = game_of(game_dir)
         for trial in trial_dirs(game_dir):
-            path = trial / "eval.json"
+            path = trial / EVAL_FILE
             if not path.is_file():
                 continue
             try:
@@ -290,7 +288,7 @@ def load_adaptation(root: str | Path) -> pd.DataFrame:
     Columns `ADAPT_COLUMNS`. For `scratch`, `run` is the modular ego whose seed it shares
     (a fresh network is trained; nothing is loaded from that run).
     """
-    return _concat(_read_tables(root, "adaptation"), ADAPT_COLUMNS)
+    return _concat(_read_tables(root, ADAPTATION_DIR), ADAPT_COLUMNS)
 
 
 ZEROSHOT_COLUMNS = ["game", "population", "label", "run", "method", "lam", "seed", "partner", "mean_return", "stderr", "exact_return", "trial", "experiment"]
@@ -298,7 +296,7 @@ ZEROSHOT_COLUMNS = ["game", "population", "label", "run", "method", "lam", "seed
 
 def load_zeroshot(root: str | Path) -> pd.DataFrame:
     """Zero-shot results on the new task: one row per (trained ego run, test partner) from `zeroshot/*.csv`. Columns `ZEROSHOT_COLUMNS`."""
-    return _concat(_read_tables(root, "zeroshot"), ZEROSHOT_COLUMNS)
+    return _concat(_read_tables(root, ZEROSHOT_DIR), ZEROSHOT_COLUMNS)
 
 
 MARGINAL_COLUMNS = ["game", "population", "label", "run", "env", "env_config", "method", "lam", "z_dim", "seed", "distance", "distance_all_states", "states", "experiment", "trial"]
@@ -312,7 +310,7 @@ def load_marginals(root: str | Path) -> pd.DataFrame:
     """
     frames = []
     for game_dir in game_dirs(root):
-        path = game_dir / "marginals.csv"
+        path = game_dir / MARGINALS_FILE
         if not path.is_file():
             continue
         table = pd.read_csv(path)
@@ -336,7 +334,7 @@ def load_selfplay_reports(root: str | Path) -> pd.DataFrame:
     """Self-play population reports: one row per trained pair (`populations/<name>/selfplay_report.csv`). Columns `SELFPLAY_COLUMNS`."""
     frames = []
     for game_dir in game_dirs(root):
-        for path in sorted((game_dir / "populations").glob("*/selfplay_report.csv")):
+        for path in sorted((game_dir / POPULATIONS_DIR).glob(f"*/{SELFPLAY_REPORT_FILE}")):
             table = pd.read_csv(path)
             table.insert(0, "population", path.parent.name)
             table.insert(0, "game", game_of(game_dir))
@@ -346,13 +344,13 @@ def load_selfplay_reports(root: str | Path) -> pd.DataFrame:
 
 
 def load_crossplay(root: str | Path) -> dict[str, pd.DataFrame]:
-    """Cross-play matrices (CSVs of `rllib_conv.pipelines.crossplay.write_crossplay`) found in `crossplay/` folders.
+    """Cross-play matrices (CSVs of `rllib-conv crossplay`) found in `crossplay/` folders.
 
     Looks in `ROOT/crossplay/` and `<game>/crossplay/`; returns {file stem: square
     matrix}, rows = population A's members in the ego seat, columns = B's members.
     """
     root = Path(root)
-    folders = [root / "crossplay", *(g / "crossplay" for g in game_dirs(root) if g != root)]
+    folders = [root / CROSSPLAY_DIR, *(g / CROSSPLAY_DIR for g in game_dirs(root) if g != root)]
     out: dict[str, pd.DataFrame] = {}
     for folder in folders:
         for path in sorted(folder.glob("*.csv")):
@@ -368,9 +366,7 @@ def load_crossplay(root: str | Path) -> dict[str, pd.DataFrame]:
 def user_study_files(paths: str | Path | Iterable[str | Path] | None = None) -> list[Path]:
     """The user-study CSVs named by `paths` (files, or folders whose *.csv are taken); None gives the paper's table."""
     if paths is None:
-        from rllib_conv.partners.user_study import DEFAULT_PATH
-
-        return [DEFAULT_PATH]
+        return [user_study_csv()]
     if isinstance(paths, (str, Path)):
         paths = [paths]
     files: list[Path] = []
@@ -387,13 +383,11 @@ def user_study_files(paths: str | Path | Iterable[str | Path] | None = None) -> 
 def load_user_study_csvs(paths: str | Path | Iterable[str | Path] | None = None) -> pd.DataFrame:
     """Read and concatenate user-study CSVs (the paper's table and/or recorded live sessions).
 
-    Each file is validated by `rllib_conv.partners.user_study.load_user_study` (one row per
+    Each file is validated by `rllib_conv.common.user_study_table.load_user_study` (one row per
     pair, task, context and try; `coordinated` = the try won the prize). Added columns:
     `source` (the file name) and `pair_id` ("<source>:<pair>"), because live sessions
     recorded in separate files may reuse pair numbers.
     """
-    from rllib_conv.partners.user_study import load_user_study  # lazy: the package imports torch
-
     frames = []
     for path in user_study_files(paths):
         df = load_user_study(path)

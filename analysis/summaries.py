@@ -14,6 +14,8 @@ from typing import Iterable, Sequence
 import numpy as np
 import pandas as pd
 
+from rllib_conv.common.user_study_table import CONTEXTS, TASKS, first_try_scores
+
 # Two-sided 95% quantiles t_{0.975, df} for df = 1..30 (standard tables).
 _T975 = (
     12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228,
@@ -156,8 +158,6 @@ def user_study_scores(study: pd.DataFrame, exclude_pairs: Iterable[int] = (), dd
     the table; `paper_figure_recipe` gives the options that reproduce the paper's figure.
     Rows come ordered train A, B, C then test A, B, C.
     """
-    from rllib_conv.partners.user_study import CONTEXTS, TASKS, first_try_scores  # lazy: the package imports torch
-
     out = first_try_scores(study, exclude_pairs, ddof)
     if swap_a:
         a = out["context"] == "A"

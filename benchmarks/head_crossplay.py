@@ -25,12 +25,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import write_result  # noqa: E402
 
 from rllib_conv import envs, partners  # noqa: E402
+from rllib_conv.common.run_folders import trial_folders  # noqa: E402
 from rllib_conv.modules.multi import ego_id  # noqa: E402
 from rllib_conv.partners.play import play_episodes  # noqa: E402
 from rllib_conv.partners.trained import PolicyPartner  # noqa: E402
-from rllib_conv.pipelines.adapt import trial_folders  # noqa: E402
-from rllib_conv.pipelines.checkpoints import last_checkpoint  # noqa: E402
-from rllib_conv.pipelines.evaluate import ego_head_partner, load_module  # noqa: E402
+from rllib_conv.training.checkpoints import last_checkpoint  # noqa: E402
+from rllib_conv.training.evaluate import ego_head_partner, load_module  # noqa: E402
 
 TASK_ONLY = "task module alone"
 BEST = "best training head"

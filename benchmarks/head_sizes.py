@@ -27,13 +27,16 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import write_result  # noqa: E402
 
 from rllib_conv import partners  # noqa: E402
+from rllib_conv.common.run_folders import trial_folders  # noqa: E402
 from rllib_conv.learners.marginal_learner import head_size  # noqa: E402
 from rllib_conv.modules.multi import ego_id  # noqa: E402
-from rllib_conv.pipelines.adapt import trial_folders  # noqa: E402
-from rllib_conv.pipelines.checkpoints import last_checkpoint  # noqa: E402
-from rllib_conv.pipelines.evaluate import load_module, optimal_actions  # noqa: E402
-from rllib_conv.pipelines.marginals import marginal_states  # noqa: E402
-from rllib_conv.pipelines.train import trial_config  # noqa: E402
+from rllib_conv.training.checkpoints import last_checkpoint  # noqa: E402
+from rllib_conv.training.evaluate import load_module  # noqa: E402
+from rllib_conv.training.experiment import trial_config  # noqa: E402
+from rllib_conv.training.marginals import (
+    marginal_states,  # noqa: E402
+    optimal_actions,  # noqa: E402
+)
 
 
 @torch.no_grad()

@@ -33,12 +33,14 @@ from ray.rllib.examples.rl_modules.classes.action_masking_rlm import (
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import write_result  # noqa: E402
 
-from rllib_conv import config, envs  # noqa: E402
-from rllib_conv.config import SelfPlayConfig  # noqa: E402
+from rllib_conv import envs  # noqa: E402
+from rllib_conv.common import config_files  # noqa: E402
+from rllib_conv.common.resources import config_file  # noqa: E402
 from rllib_conv.envs.rllib_adapter import RLlibGame, game_env_config  # noqa: E402
 from rllib_conv.partners.play import play_episodes  # noqa: E402
 from rllib_conv.partners.trained import PolicyPartner  # noqa: E402
 from rllib_conv.pipelines.selfplay import SeatMapping, seat_module_id, train_population  # noqa: E402
+from rllib_conv.pipelines.selfplay_config import SelfPlayConfig  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -46,7 +48,7 @@ ROOT = Path(__file__).resolve().parents[1]
 def ours(game: str, pairs: int, budget: int | None) -> dict:
     """Train `pairs` pairs with the tuned config; return steps to gate and speed."""
     overrides = [f"train_pairs={pairs}", "test_pairs=0", f"name=bench-{game}"] + ([f"run.timesteps={budget}"] if budget else [])
-    raw = config.load(ROOT / "tune_configs" / f"selfplay_{game}.yaml", overrides, schema=SelfPlayConfig)
+    raw = config_files.load(config_file(f"selfplay_{game}.yaml"), overrides, schema=SelfPlayConfig)
     with tempfile.TemporaryDirectory() as tmp:
         _, report = train_population(raw, out=Path(tmp) / "pops", storage=Path(tmp) / "runs")
     steps = report["steps_to_gate"].dropna().tolist()
@@ -105,7 +107,7 @@ def main() -> None:
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
     rows = []
     for game in args.games:
-        cfg = config.validate(config.load(ROOT / "tune_configs" / f"selfplay_{game}.yaml", schema=SelfPlayConfig), schema=SelfPlayConfig)[0]
+        cfg = config_files.validate(config_files.load(config_file(f"selfplay_{game}.yaml"), schema=SelfPlayConfig), schema=SelfPlayConfig)[0]
         mine = ours(game, args.pairs, args.budget)
         default = rllib_default(game, cfg, args.default_seconds)
         rows.append({"game": game, "gate": cfg.gate.score, "ours": mine, "rllib_default": default})

@@ -33,14 +33,15 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import write_result  # noqa: E402
 
 from rllib_conv import partners  # noqa: E402
-from rllib_conv.config import ExperimentConfig  # noqa: E402
 from rllib_conv.envs.rllib_adapter import to_rllib  # noqa: E402
 from rllib_conv.partners.blocks import (  # noqa: E402
     TEST_PERMUTATIONS,
     TRAIN_PERMUTATIONS,
     PermutationPartner,
 )
-from rllib_conv.pipelines.algorithm import build_ppo_config, resolve  # noqa: E402
+from rllib_conv.training.algorithm import build_ppo_config  # noqa: E402
+from rllib_conv.training.ego_setup import resolve  # noqa: E402
+from rllib_conv.training.experiment import ExperimentConfig  # noqa: E402
 
 
 def _blocks_four(tmp: Path) -> str:

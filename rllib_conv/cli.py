@@ -52,10 +52,10 @@ def _cmd_demo(args: argparse.Namespace) -> None:
 def _cmd_train(args: argparse.Namespace) -> None:
     import pandas as pd
 
-    from rllib_conv import config
     from rllib_conv.pipelines.train import run
+    from rllib_conv.training import experiment
 
-    raw = config.load(args.config, args.set)
+    raw = experiment.load(args.config, args.set)
     sweep = args.command == "sweep"
     results = run(raw, storage=args.storage, address=args.address, progress="table" if sweep else "lines", resume=sweep and args.resume)
     rows = []
@@ -90,10 +90,11 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
 def _cmd_partners_train(args: argparse.Namespace) -> None:
     import pandas as pd
 
-    from rllib_conv import config
+    from rllib_conv.common import config_files
     from rllib_conv.pipelines.selfplay import train_population
+    from rllib_conv.pipelines.selfplay_config import SelfPlayConfig
 
-    raw = config.load(args.config, args.set, schema=config.SelfPlayConfig)
+    raw = config_files.load(args.config, args.set, schema=SelfPlayConfig)
     population, report = train_population(raw, out=args.out, storage=args.storage, address=args.address, overwrite=args.overwrite)
     with pd.option_context("display.width", 200, "display.float_format", "{:.3f}".format):
         print(report.to_string(index=False))
@@ -118,13 +119,14 @@ def _cmd_crossplay(args: argparse.Namespace) -> None:
 
 
 def _cmd_adapt(args: argparse.Namespace) -> None:
-    from rllib_conv import config
+    from rllib_conv.common import config_files
     from rllib_conv.pipelines.adapt import run_adaptation
+    from rllib_conv.pipelines.adapt_config import AdaptConfig
 
     raw = {"name": args.name, "runs": args.runs, "split": args.split, "train_task": not args.frozen_task, "head_init": args.head_init}
     options = {"population": args.population, "partners": args.partner, "method": args.method, "pick_steps": args.pick_steps}
     raw.update({k: v for k, v in options.items() if v is not None})
-    raw = config.from_dict(raw, args.set, schema=config.AdaptConfig)
+    raw = config_files.from_dict(raw, args.set, schema=AdaptConfig)
     curves = run_adaptation(raw, out=args.out, storage=args.storage, address=args.address)
     summary = curves.groupby(["method", "lam", "steps"])[["mean_return", "exact_return"]].mean().unstack("steps")
     print(summary.round(3).to_string())
@@ -134,13 +136,14 @@ def _cmd_adapt(args: argparse.Namespace) -> None:
 def _cmd_zeroshot(args: argparse.Namespace) -> None:
     import pandas as pd
 
-    from rllib_conv import config
+    from rllib_conv.common import config_files
     from rllib_conv.pipelines.zeroshot import run_zeroshot
+    from rllib_conv.pipelines.zeroshot_config import ZeroShotConfig
 
     raw = {"name": args.name, "runs": args.runs}
     if args.new_population:
         raw["new_population"] = args.new_population
-    raw = config.from_dict(raw, args.set, schema=config.ZeroShotConfig)
+    raw = config_files.from_dict(raw, args.set, schema=ZeroShotConfig)
     table = run_zeroshot(raw, out=args.out, storage=args.storage, address=args.address)
     with pd.option_context("display.width", 200, "display.max_colwidth", 60, "display.float_format", "{:.3f}".format):
         print(table.drop(columns=["run"]).to_string(index=False))
@@ -150,7 +153,7 @@ def _cmd_zeroshot(args: argparse.Namespace) -> None:
 def _cmd_marginals(args: argparse.Namespace) -> None:
     import pandas as pd
 
-    from rllib_conv.pipelines.adapt import trial_folders
+    from rllib_conv.common.run_folders import trial_folders
     from rllib_conv.pipelines.marginals import marginal_report
 
     table = marginal_report([t for run in args.runs for t in trial_folders(run)], episodes=args.episodes, seed=args.seed)
@@ -168,9 +171,14 @@ def _cmd_play(args: argparse.Namespace) -> None:
 
 
 def _cmd_reproduce(args: argparse.Namespace) -> None:
+    from analysis.report import build_report
     from rllib_conv.pipelines.reproduce import reproduce, stage_table
 
-    reproduce(args.game, out=args.out, seeds=args.seeds, quick=args.quick, address=args.address, populations=args.populations, methods=args.methods, redo=args.redo, train_steps=args.train_steps)
+    reproduce(
+        args.game, out=args.out, seeds=args.seeds, quick=args.quick, address=args.address, populations=args.populations,
+        methods=args.methods, redo=args.redo, train_steps=args.train_steps, plan_file=args.plan,
+    )
+    print(f"report: {build_report(args.out)}")
     print(stage_table(args.out).to_string(index=False))
 
 
@@ -269,6 +277,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--train-steps", type=int, default=None, metavar="N",
         help="env steps each ego trains for (default: the paper's, e.g. blocks 1000000); a folder trained with another budget is refused",
+    )
+    p.add_argument(
+        "--plan", default=None, metavar="FILE",
+        help="a plan YAML to run instead of the shipped tune_configs/plan_GAME.yaml (copy and edit that file)",
     )
     p.add_argument("--address", default=None, help="Ray cluster address; default: $RAY_ADDRESS or a local Ray")
     p.set_defaults(func=_cmd_reproduce)

@@ -26,10 +26,10 @@ def bandit_egos(ray_session, tmp_path_factory):
     Trained once per session through the real Tune pipeline, two trials in parallel;
     returns {population name: trial result}.
     """
-    from rllib_conv import config
     from rllib_conv.pipelines.train import run
+    from rllib_conv.training import experiment
 
-    raw = config.load(
+    raw = experiment.load(
         "tune_configs/bandit_modular.yaml", ["name=egos", "population={grid_search: [bandit-s1-hand, bandit-s2-hand]}"]
     )
     results = run(raw, storage=tmp_path_factory.mktemp("egos"))

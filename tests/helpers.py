@@ -11,9 +11,10 @@ from ray.rllib.core.columns import Columns
 from ray.rllib.evaluation.postprocessing import Postprocessing
 
 from rllib_conv import envs
-from rllib_conv.config import ExperimentConfig
 from rllib_conv.envs.rllib_adapter import PettingZooMultiAgentEnv
-from rllib_conv.pipelines.algorithm import EgoSetup, build_ppo_config, resolve
+from rllib_conv.training.algorithm import build_ppo_config
+from rllib_conv.training.ego_setup import EgoSetup, resolve
+from rllib_conv.training.experiment import ExperimentConfig
 
 
 def bandit_setup(**overrides) -> EgoSetup:

@@ -5,7 +5,12 @@ from __future__ import annotations
 import pytest
 import yaml
 
-from rllib_conv import config
+from rllib_conv.common import config_files
+from rllib_conv.pipelines.plans import PlanFile
+from rllib_conv.pipelines.selfplay_config import SelfPlayConfig
+from rllib_conv.pipelines.zeroshot_config import ZeroShotConfig
+from rllib_conv.training import experiment
+from rllib_conv.training.experiment import ExperimentConfig
 
 
 def write(tmp_path, data) -> str:
@@ -20,14 +25,14 @@ def test_shipped_configs_are_valid() -> None:
     files = sorted(Path("tune_configs").glob("*.yaml"))
     assert files
     for f in files:
-        schema = config.SelfPlayConfig if f.name.startswith("selfplay_") else config.ExperimentConfig
-        assert config.validate(config.load(f, schema=schema), str(f), schema=schema)
+        schema = SelfPlayConfig if f.name.startswith("selfplay_") else PlanFile if f.name.startswith("plan_") else ExperimentConfig
+        assert config_files.validate(config_files.load(f, schema=schema), str(f), schema=schema)
 
 
 def test_defaults_are_the_papers_per_game() -> None:
-    exp = config.ExperimentConfig(population="x").resolve("blocks")
+    exp = ExperimentConfig(population="x").resolve("blocks")
     assert (exp.model.hidden, exp.ppo.rollout_per_partner, exp.ppo.minibatch_size, exp.ppo.num_epochs, exp.run.timesteps) == (80, 640, 160, 5, 1_000_000)
-    exp = config.ExperimentConfig(population="x", model={"hidden": 12}).resolve("bandit")
+    exp = ExperimentConfig(population="x", model={"hidden": 12}).resolve("bandit")
     assert (exp.model.hidden, exp.ppo.num_epochs, exp.run.timesteps) == (12, 20, 10_000)
 
 
@@ -49,40 +54,40 @@ def test_defaults_are_the_papers_per_game() -> None:
 )
 def test_bad_configs_name_the_key(tmp_path, data, match) -> None:
     with pytest.raises(ValueError, match=match):
-        config.load(write(tmp_path, data))
+        experiment.load(write(tmp_path, data))
 
 
 def test_grids_expand_to_every_combination(tmp_path) -> None:
-    raw = config.load(write(tmp_path, {"population": "p", "lam": {"grid_search": [0.0, 0.5]}, "seed": {"grid_search": [0, 1, 2]}}))
-    variants = config.validate(raw)
+    raw = experiment.load(write(tmp_path, {"population": "p", "lam": {"grid_search": [0.0, 0.5]}, "seed": {"grid_search": [0, 1, 2]}}))
+    variants = experiment.validate(raw)
     assert sorted((v.lam, v.seed) for v in variants) == [(lam, s) for lam in (0.0, 0.5) for s in (0, 1, 2)]
 
 
 def test_set_overrides_and_their_errors(tmp_path) -> None:
-    raw = config.load(write(tmp_path, {"population": "p"}), ["ppo.lr=0.001", "lam=0.3", "run.timesteps=500"])
+    raw = experiment.load(write(tmp_path, {"population": "p"}), ["ppo.lr=0.001", "lam=0.3", "run.timesteps=500"])
     assert (raw["ppo"]["lr"], raw["lam"], raw["run"]["timesteps"]) == (0.001, 0.3, 500)
     with pytest.raises(ValueError, match="--set expects key=value"):
-        config.load(write(tmp_path, {"population": "p"}), ["lam"])
+        experiment.load(write(tmp_path, {"population": "p"}), ["lam"])
     with pytest.raises(ValueError, match="ppo.num_epochs: Input should be a valid integer"):
-        config.load(write(tmp_path, {"population": "p"}), ["ppo.num_epochs=many"])
+        experiment.load(write(tmp_path, {"population": "p"}), ["ppo.num_epochs=many"])
 
 
-@pytest.mark.parametrize(("schema", "key"), [(config.ExperimentConfig, "ppo.entropy_coeff"), (config.ZeroShotConfig, "task_entropy")])
+@pytest.mark.parametrize(("schema", "key"), [(ExperimentConfig, "ppo.entropy_coeff"), (ZeroShotConfig, "task_entropy")])
 def test_entropy_schedules_are_checked(schema, key) -> None:
-    base = {"population": "p"} if schema is config.ExperimentConfig else {"runs": ["r"]}
-    good = config.from_dict(base, [f"{key}=[[0, 0.05], [200000, 0.0]]"], schema=schema)
-    assert config.validate(good, schema=schema)
+    base = {"population": "p"} if schema is ExperimentConfig else {"runs": ["r"]}
+    good = config_files.from_dict(base, [f"{key}=[[0, 0.05], [200000, 0.0]]"], schema=schema)
+    assert config_files.validate(good, schema=schema)
     for bad in ("[[100, 0.05]]", "[[0, 0.05], [0, 0.0]]", "[]"):
         with pytest.raises(ValueError, match=f"{key}.*a schedule must be"):
-            config.validate(config.from_dict(base, [f"{key}={bad}"], schema=schema), schema=schema)
+            config_files.validate(config_files.from_dict(base, [f"{key}={bad}"], schema=schema), schema=schema)
 
 
 def test_missing_and_broken_files(tmp_path) -> None:
     with pytest.raises(ValueError, match="does not exist"):
-        config.load(tmp_path / "nope.yaml")
+        experiment.load(tmp_path / "nope.yaml")
     (tmp_path / "bad.yaml").write_text("a: [1, 2")
     with pytest.raises(ValueError, match="not valid YAML"):
-        config.load(tmp_path / "bad.yaml")
+        experiment.load(tmp_path / "bad.yaml")
     (tmp_path / "list.yaml").write_text("- 1\n- 2\n")
     with pytest.raises(ValueError, match="expected a mapping"):
-        config.load(tmp_path / "list.yaml")
+        experiment.load(tmp_path / "list.yaml")

@@ -20,6 +20,7 @@ import numpy as np
 from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
+from rllib_conv.common.user_study_table import USER_STUDY_ARMS, USER_STUDY_GOOD_ARMS
 from rllib_conv.envs.spaces import (
     MASK_KEY,
     OBS_KEY,
@@ -31,12 +32,6 @@ from rllib_conv.envs.spaces import (
 PAPER_CONTEXTS = 4
 PAPER_ARMS = 8
 
-# 0-based good arms per context of the user-study tasks (paper Fig. 4, 1-based there).
-USER_STUDY_GOOD_ARMS: dict[str, list[tuple[int, ...]]] = {
-    "train": [(0,), (2, 3), (1, 3)],
-    "test": [(2,), (0, 1), (1, 3)],
-}
-USER_STUDY_ARMS = 4
 TASKS = ["paper", "user_study"]
 
 

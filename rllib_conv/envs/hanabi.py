@@ -25,7 +25,7 @@ Design notes:
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass, fields
 from typing import Any
 
 import gymnasium
@@ -43,18 +43,6 @@ from rllib_conv.envs.spaces import (
 )
 
 ENV_NAME = "hanabi_v0"
-
-# The paper's small Hanabi (Shih et al., ICLR 2021).
-DEFAULT_CONFIG: dict[str, Any] = {
-    "colors": 1,
-    "ranks": 5,
-    "players": 2,
-    "hand_size": 2,
-    "max_information_tokens": 3,
-    "max_life_tokens": 3,
-    "observation_type": 1,
-    "random_start_player": True,
-}
 
 # HLE's own limits (hanabi_game.cc: kMaxNumColors, kMaxNumRanks, Min/MaxPlayers).
 MAX_COLORS = 5
@@ -87,43 +75,50 @@ def _check_int(name: str, value: Any, allowed: range) -> int:
     return int(value)
 
 
-def validate_config(
-    colors: Any,
-    ranks: Any,
-    players: Any,
-    hand_size: Any,
-    max_information_tokens: Any,
-    max_life_tokens: Any,
-    observation_type: Any,
-    random_start_player: Any,
-) -> dict[str, Any]:
-    """Check a Hanabi game config against HLE's limits and return it with plain Python types.
+@dataclass(frozen=True)
+class HanabiConfig:
+    """An HLE game configuration, checked against HLE's limits; the defaults are the paper's small Hanabi.
 
-    Raises ValueError naming the offending argument and its allowed range, so
-    that no bad value ever reaches HLE's C++ code (which aborts the process).
+    Every bad value raises ValueError naming the argument and its allowed range, so no bad
+    value ever reaches HLE's C++ code (which aborts the process); an unknown keyword is a
+    TypeError naming it.
     """
-    cfg: dict[str, Any] = {
-        "colors": _check_int("colors", colors, range(1, MAX_COLORS + 1)),
-        "ranks": _check_int("ranks", ranks, range(1, MAX_RANKS + 1)),
-        "players": _check_int("players", players, range(MIN_PLAYERS, MAX_PLAYERS + 1)),
-        "hand_size": _check_int("hand_size", hand_size, range(1, MAX_HAND_SIZE + 1)),
-        "max_information_tokens": _check_int(
-            "max_information_tokens", max_information_tokens, range(1, MAX_TOKENS + 1)
-        ),
-        "max_life_tokens": _check_int("max_life_tokens", max_life_tokens, range(1, MAX_TOKENS + 1)),
-        "observation_type": _check_int("observation_type", observation_type, range(0, 3)),
-    }
-    if not isinstance(random_start_player, (bool, np.bool_)):
-        raise ValueError(f"random_start_player must be True or False, got {random_start_player!r}")
-    cfg["random_start_player"] = bool(random_start_player)
-    deck = cfg["colors"] * cards_per_color(cfg["ranks"])
-    if cfg["hand_size"] * cfg["players"] > deck:
-        raise ValueError(
-            f"hand_size must be at most {deck // cfg['players']} for {cfg['players']} players: "
-            f"the deck of {cfg['colors']} colour(s) x {cfg['ranks']} rank(s) holds only {deck} cards, "
-            f"got hand_size={cfg['hand_size']}"
-        )
-    return cfg
+
+    colors: int = 1
+    ranks: int = 5
+    players: int = 2
+    hand_size: int = 2
+    max_information_tokens: int = 3
+    max_life_tokens: int = 3
+    observation_type: int = 1
+    random_start_player: bool = True
+
+    def __post_init__(self) -> None:
+        limits = {
+            "colors": range(1, MAX_COLORS + 1),
+            "ranks": range(1, MAX_RANKS + 1),
+            "players": range(MIN_PLAYERS, MAX_PLAYERS + 1),
+            "hand_size": range(1, MAX_HAND_SIZE + 1),
+            "max_information_tokens": range(1, MAX_TOKENS + 1),
+            "max_life_tokens": range(1, MAX_TOKENS + 1),
+            "observation_type": range(0, 3),
+        }
+        for name, allowed in limits.items():
+            object.__setattr__(self, name, _check_int(name, getattr(self, name), allowed))
+        if not isinstance(self.random_start_player, (bool, np.bool_)):
+            raise ValueError(f"random_start_player must be True or False, got {self.random_start_player!r}")
+        object.__setattr__(self, "random_start_player", bool(self.random_start_player))
+        deck = self.colors * cards_per_color(self.ranks)
+        if self.hand_size * self.players > deck:
+            raise ValueError(
+                f"hand_size must be at most {deck // self.players} for {self.players} players: "
+                f"the deck of {self.colors} colour(s) x {self.ranks} rank(s) holds only {deck} cards, "
+                f"got hand_size={self.hand_size}"
+            )
+
+    def game_keys(self) -> dict[str, int]:
+        """The keys that shape the game's cards and observations (all but the encoding and the start seat)."""
+        return {k: v for k, v in asdict(self).items() if k not in ("observation_type", "random_start_player")}
 
 
 @dataclass(frozen=True)
@@ -307,31 +302,13 @@ class HanabiEnv(AECEnv):
 
     metadata = {"name": ENV_NAME, "render_modes": ["ansi"], "is_parallelizable": False}
 
-    def __init__(
-        self,
-        *,
-        colors: int = 1,
-        ranks: int = 5,
-        players: int = 2,
-        hand_size: int = 2,
-        max_information_tokens: int = 3,
-        max_life_tokens: int = 3,
-        observation_type: int = 1,
-        random_start_player: bool = True,
-        render_mode: str | None = None,
-    ) -> None:
-        """Build the env; raises ValueError naming any out-of-range argument."""
+    # The keyword arguments `__init__` takes (it reads them as **config): the env registry checks them.
+    config_keys = ("render_mode", *(f.name for f in fields(HanabiConfig)))
+
+    def __init__(self, *, render_mode: str | None = None, **config: Any) -> None:
+        """Build the env from `HanabiConfig` keywords; raises ValueError naming any out-of-range argument."""
         super().__init__()
-        self.config = validate_config(
-            colors,
-            ranks,
-            players,
-            hand_size,
-            max_information_tokens,
-            max_life_tokens,
-            observation_type,
-            random_start_player,
-        )
+        self.config = asdict(HanabiConfig(**config))
         if render_mode is not None:
             check_choice("render_mode", render_mode, [None, *self.metadata["render_modes"]])
         self.render_mode = render_mode

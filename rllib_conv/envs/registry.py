@@ -68,7 +68,13 @@ def make(name: str, **config: Any) -> AECEnv | ParallelEnv:
 
 
 def _accepted_keys(build: EnvFactory) -> set[str] | None:
-    """The keyword names `build` accepts, or None if it takes **kwargs (or cannot be inspected)."""
+    """The keyword names `build` accepts, or None if it takes **kwargs (or cannot be inspected).
+
+    A factory that reads its settings as **config declares them in `config_keys`.
+    """
+    declared = getattr(build, "config_keys", None)
+    if declared is not None:
+        return set(declared)
     target = build.__init__ if isinstance(build, type) else build
     try:
         params = inspect.signature(target).parameters.values()

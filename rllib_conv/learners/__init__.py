@@ -1,11 +1,6 @@
-"""Learners: PPO with the marginal regulariser and real freezing."""
+"""Learners: PPO with the marginal regulariser and real freezing.
 
-from rllib_conv.learners.marginal_learner import (
-    HEAD_L2_KEY,
-    MARGINAL_REG_KEY,
-    MarginalPPOLearner,
-    head_size,
-    marginal_distance,
-)
-
-__all__ = ["HEAD_L2_KEY", "MARGINAL_REG_KEY", "MarginalPPOLearner", "head_size", "marginal_distance"]
+- `marginal_learner`: `MarginalPPOLearner`, the regulariser `marginal_distance` and the head penalty `head_size`.
+- `settings`: `LearnerSettings`, what the learner reads from `learner_config_dict` (light: no torch, no Ray).
+- `drop_bootstrap_rows`: the learner connector piece that drops PPO's bootstrap rows after GAE.
+"""

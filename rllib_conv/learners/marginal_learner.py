@@ -7,7 +7,8 @@ are dropped by `DropBootstrapRows` before minibatching), the regulariser is
 
 over all ego heads i (one per training partner), with no gradient stopping. The loss
 adds `lam * D`; `lam = 0` leaves PPO's loss untouched (D is still logged, computed
-without gradients). Settings come from `config.learners(learner_config_dict=...)`:
+without gradients). Settings come from `config.learners(learner_config_dict=...)`, the
+fields of `LearnerSettings` (whose defaults are the only ones):
 
 - `lam` (float, default 0): the regulariser weight.
 - `freeze` (list): module IDs, or the groups `"task"` and `"heads"`, whose weights must
@@ -30,6 +31,7 @@ without gradients). Settings come from `config.learners(learner_config_dict=...)
 
 from __future__ import annotations
 
+from functools import cached_property
 from typing import Any
 
 import torch
@@ -38,6 +40,7 @@ from ray.rllib.core import ALL_MODULES
 from ray.rllib.core.learner.learner import DEFAULT_OPTIMIZER
 
 from rllib_conv.learners.drop_bootstrap_rows import DropBootstrapRows
+from rllib_conv.learners.settings import LearnerSettings
 from rllib_conv.modules.multi import ALL_HEAD_LOGITS, ALL_HEAD_OUTPUTS, TASK_ID
 from rllib_conv.modules.partner_head import TASK_LOGITS, PartnerHeadModule
 
@@ -66,20 +69,26 @@ class MarginalPPOLearner(PPOTorchLearner):
         if self._learner_connector is not None:
             self._learner_connector.append(DropBootstrapRows())
 
+    @cached_property
+    def settings(self) -> LearnerSettings:
+        """The regulariser, head penalty, freezing and Adam settings from `learner_config_dict`."""
+        cfg = dict(self.config.learner_config_dict)
+        return LearnerSettings(**{**cfg, "freeze": tuple(cfg.get("freeze", ()))})
+
     @property
     def lam(self) -> float:
-        """The regulariser weight from `learner_config_dict["lam"]`."""
-        return float(self.config.learner_config_dict.get("lam", 0.0))
+        """The regulariser weight."""
+        return float(self.settings.lam)
 
     @property
     def head_l2(self) -> float:
-        """The head penalty's weight from `learner_config_dict["head_l2"]`."""
-        return float(self.config.learner_config_dict.get("head_l2", 0.0))
+        """The head penalty's weight."""
+        return float(self.settings.head_l2)
 
     def frozen_module_ids(self) -> set[str]:
         """Module IDs whose weights must not change (expands the groups "task" and "heads")."""
         frozen: set[str] = set()
-        for item in self.config.learner_config_dict.get("freeze", []):
+        for item in self.settings.freeze:
             if item == "task":
                 frozen.add(TASK_ID)
             elif item == "heads":
@@ -94,7 +103,7 @@ class MarginalPPOLearner(PPOTorchLearner):
             for p in module.parameters():
                 p.requires_grad_(False)
             return
-        scale = float(self.config.learner_config_dict.get("z_lr_scale", 1.0))
+        scale = float(self.settings.z_lr_scale)
         z_params = list(module.pi_tower.parameters()) if module_id == TASK_ID and scale != 1.0 else []
         z_ids = {id(p) for p in z_params}
         groups = {DEFAULT_OPTIMIZER: ([p for p in self.get_parameters(module) if id(p) not in z_ids], config.lr)}
@@ -104,7 +113,7 @@ class MarginalPPOLearner(PPOTorchLearner):
         elif z_params:
             # Adam is invariant to the gradient's scale: a slower z needs a learning rate of its own.
             groups["z"] = (z_params, config.lr * scale)
-        eps = float(self.config.learner_config_dict.get("adam_eps", 1e-5))
+        eps = float(self.settings.adam_eps)
         for name, (params, lr) in groups.items():
             if params:
                 self.register_optimizer(

@@ -12,6 +12,7 @@ import numpy as np
 from ray.rllib.core.columns import Columns
 from ray.rllib.core.rl_module.rl_module import RLModule
 
+import rllib_conv.partners  # noqa: F401  (registers every built-in partner kind in this process)
 from rllib_conv.modules.task_module import split_obs
 from rllib_conv.partners.kinds import partner_from_spec
 
@@ -29,8 +30,6 @@ class FixedPartnerModule(RLModule):
     framework = None
 
     def setup(self) -> None:
-        import rllib_conv.partners  # noqa: F401  (registers every partner kind on this process)
-
         self.partner = partner_from_spec(self.model_config["partner"])
         self.partner.seed(self.model_config.get("seed"))
 

@@ -20,6 +20,7 @@ from ray.rllib.core.columns import Columns
 from ray.rllib.core.rl_module.apis.value_function_api import ValueFunctionAPI
 from ray.rllib.core.rl_module.torch import TorchRLModule
 
+from rllib_conv.envs.oracles import oracle_for
 from rllib_conv.envs.rllib_adapter import RLLIB_MASK_KEY, RLLIB_OBS_KEY
 from rllib_conv.modules.mlp import masked_logits, mlp
 
@@ -58,8 +59,6 @@ class TaskModule(TorchRLModule, ValueFunctionAPI):
         self.vf = mlp([obs_dim, hidden, hidden, 1], out_gain=1.0)
         self._oracle = None
         if cfg.get("oracle"):
-            from rllib_conv.envs.oracles import oracle_for
-
             self._oracle = oracle_for(cfg["oracle"]["env"], cfg["oracle"].get("env_config", {}))
 
     def policy(self, obs: torch.Tensor, action_mask: torch.Tensor | None) -> TaskOutput:

@@ -13,10 +13,10 @@ from typing import Any
 import numpy as np
 
 from rllib_conv.envs.hanabi import (
+    HanabiConfig,
     HanabiMoveIds,
     card_count,
     decode_card_knowledge,
-    validate_config,
 )
 from rllib_conv.partners.base import Partner
 from rllib_conv.partners.kinds import register_kind
@@ -76,22 +76,11 @@ class HanabiRulePartner(Partner):
 
     kind = "hanabi_rule"
 
-    def __init__(
-        self,
-        name: str = "hanabi_rule",
-        colors: int = 1,
-        ranks: int = 5,
-        players: int = 2,
-        hand_size: int = 2,
-        max_information_tokens: int = 3,
-        max_life_tokens: int = 3,
-    ) -> None:
-        """Create the partner for observations of the given game config (validated like the env's)."""
+    def __init__(self, name: str = "hanabi_rule", **game: int) -> None:
+        """Create the partner for observations of the game `game` (`HanabiConfig` keywords, validated like the env's)."""
         super().__init__(name)
-        cfg = validate_config(colors, ranks, players, hand_size, max_information_tokens, max_life_tokens, 1, True)
-        keys = ("colors", "ranks", "players", "hand_size", "max_information_tokens", "max_life_tokens")
-        self._cfg = {k: cfg[k] for k in keys}
-        self._ids = HanabiMoveIds(cfg["colors"], cfg["ranks"], cfg["players"], cfg["hand_size"])
+        self._cfg = HanabiConfig(**game).game_keys()
+        self._ids = HanabiMoveIds(self._cfg["colors"], self._cfg["ranks"], self._cfg["players"], self._cfg["hand_size"])
 
     def params(self) -> dict[str, Any]:
         """Return the game config this partner decodes observations with."""

@@ -26,12 +26,13 @@ from typing import Any, Callable, Literal
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
+from rllib_conv.common.config_files import describe
+from rllib_conv.common.run_folders import POPULATION_FILE
 from rllib_conv.envs.registry import factory as env_factory
 from rllib_conv.partners.base import Partner
 from rllib_conv.partners.kinds import partner_from_spec
 
 Split = Literal["train", "test"]
-MANIFEST_FILE = "population.json"
 
 
 class PartnerEntry(BaseModel):
@@ -118,7 +119,7 @@ class Population(BaseModel):
         """
         path = Path(path)
         if path.is_dir():
-            path = path / MANIFEST_FILE
+            path = path / POPULATION_FILE
         if not path.is_file():
             raise ValueError(f"population manifest {str(path)!r} does not exist")
         try:
@@ -128,16 +129,11 @@ class Population(BaseModel):
         try:
             pop = cls.model_validate(data)
         except ValidationError as exc:
-            raise ValueError(f"population manifest {str(path)!r}: {_describe(exc)}") from None
+            raise ValueError(f"population manifest {str(path)!r}: {describe(exc)}") from None
         for entry in pop.partners:
             entry.resolve_paths(path.parent)
         pop.validate_partners()
         return pop
-
-
-def _describe(exc: ValidationError) -> str:
-    """One line per problem: the dotted key path and what was wrong."""
-    return "; ".join(f"{'.'.join(str(p) for p in err['loc']) or '<root>'}: {err['msg']}" for err in exc.errors())
 
 
 _BUILTINS: dict[str, Callable[[], Population]] = {}

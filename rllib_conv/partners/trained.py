@@ -1,4 +1,4 @@
-"""Partners that are trained networks: any logits function, or a policy module loaded from disk."""
+"""Partners that are trained networks: any logits function, or an RLlib policy module loaded from disk."""
 
 from __future__ import annotations
 
@@ -7,7 +7,11 @@ from typing import Any, Callable
 
 import numpy as np
 import torch
+from ray.rllib.core.columns import Columns
+from ray.rllib.core.rl_module.rl_module import RLModule
 
+from rllib_conv.common.sealed import is_sealed, verify
+from rllib_conv.envs.rllib_adapter import RLLIB_MASK_KEY, RLLIB_OBS_KEY
 from rllib_conv.partners.base import Partner
 from rllib_conv.partners.kinds import register_kind
 
@@ -55,28 +59,41 @@ class PolicyPartner(Partner):
         return {"greedy": self.greedy, "seed": self._seed}
 
 
+def module_logits(module: RLModule) -> LogitsFn:
+    """The masked action logits of any RLlib policy module, through its own inference forward pass.
+
+    The module sees the observations as the RLlib adapter gives them (`{"observations",
+    "action_mask"}`), so any module trained on our games (the self-play `TaskModule`, a
+    user's own) can be a partner.
+    """
+
+    def logits(obs: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+        batch = {Columns.OBS: {RLLIB_OBS_KEY: obs, RLLIB_MASK_KEY: mask}}
+        return module.forward_inference(batch)[Columns.ACTION_DIST_INPUTS]
+
+    return logits
+
+
 @register_kind
 class TrainedPolicyPartner(PolicyPartner):
-    """A trained policy module (`TaskModule`) loaded from its RLlib module checkpoint folder."""
+    """A trained policy module loaded from its RLlib module checkpoint folder (`RLModule.from_checkpoint`)."""
 
     kind = "trained_policy"
 
     def __init__(self, name: str, checkpoint: str, greedy: bool = True, seed: int = 0) -> None:
-        from rllib_conv.modules.task_module import TaskModule
-        from rllib_conv.pipelines.checkpoints import MANIFEST, verify
-
         path = Path(checkpoint)
         if not (path / "class_and_ctor_args.pkl").is_file() or not any(path.glob("module_state*")):
             raise ValueError(f"partner {name!r}: checkpoint {str(path)!r} does not exist or holds no module state")
-        if (path / MANIFEST).is_file():  # populations written by `partners train` are sealed
+        if is_sealed(path):  # populations written by `partners train` are sealed
             verify(path)
         self.checkpoint = str(path)
         try:
-            self.module = TaskModule.from_checkpoint(path)
+            # The checkpoint names its module class (ours: `TaskModule`); RLlib rebuilds that class.
+            self.module = RLModule.from_checkpoint(path)
         except Exception as exc:  # a damaged pickle raises anything from EOFError to UnpicklingError
             raise ValueError(f"partner {name!r}: checkpoint {str(path)!r} cannot be loaded ({type(exc).__name__}: {exc})") from None
         self.module.eval()
-        super().__init__(name, lambda obs, mask: self.module.policy(obs, mask).logits, greedy, seed)
+        super().__init__(name, module_logits(self.module), greedy, seed)
 
     def params(self) -> dict[str, Any]:
         return {"checkpoint": self.checkpoint, **super().params()}

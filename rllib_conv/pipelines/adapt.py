@@ -22,35 +22,29 @@ from typing import Any
 
 import pandas as pd
 from ray import tune
-from ray.tune.execution.placement_groups import PlacementGroupFactory
 
 from rllib_conv import envs, partners
-from rllib_conv.config import ADAPT_DEFAULTS, SINGLE_HEAD_METHODS, AdaptConfig, ExperimentConfig, validate
+from rllib_conv.common.config_files import validate
+from rllib_conv.common.methods import method
+from rllib_conv.common.run_folders import ADAPT_PREFIX, RL_MODULE_DIR, trial_folders
+from rllib_conv.envs.defaults import ADAPT_DEFAULTS
 from rllib_conv.modules.multi import AGG_HEAD_ID, TASK_ID
-from rllib_conv.pipelines.algorithm import EgoSetup, build_ppo_config, load_weights, push_learner_weights, setup_for
-from rllib_conv.pipelines.checkpoints import RL_MODULE_DIR, AlgorithmCheckpoints, last_checkpoint
-from rllib_conv.pipelines.evaluate import ego_head_partner, ego_return, load_module
-from rllib_conv.pipelines.head_pick import HeadPick, pick_head
-from rllib_conv.pipelines.train import CONFIG_FILE, head_for, trial_config
-from rllib_conv.pipelines.tuning import fit
+from rllib_conv.pipelines.adapt_config import AdaptConfig
+from rllib_conv.training.algorithm import build_ppo_config
+from rllib_conv.training.checkpoints import last_checkpoint
+from rllib_conv.training.ego_setup import EgoSetup, setup_for
+from rllib_conv.training.evaluate import ego_head_partner, ego_return, load_module
+from rllib_conv.training.experiment import ExperimentConfig, trial_config
+from rllib_conv.training.head_pick import HeadPick, pick_head
+from rllib_conv.training.trainable import AlgorithmTrainable
+from rllib_conv.training.tuning import fit
+from rllib_conv.training.weights import load_weights, push_learner_weights
 
 PAIR_KEY = "adapt_pair"
-TUNE_PREFIX = "adapt-"  # the Tune experiment of adaptation `name` is `adapt-<name>`
 STEPS_FILE = "adapt_steps.json"
 FRESH = "fresh"  # the new partner's own (fresh) head, as a `head_pick` candidate
 PICK_SEED = 1_000_000  # head-picking episodes are seeded apart from the evaluation episodes
 CURVE_COLUMNS = ["run", "method", "lam", "z_dim", "seed", "partner", "steps", "mean_return", "stderr", "exact_return"]
-
-
-def trial_folders(path: str | Path) -> list[Path]:
-    """The trained-ego trial folders under `path` (itself, or every trial of an experiment folder)."""
-    path = Path(path)
-    if (path / CONFIG_FILE).is_file():
-        return [path]
-    trials = sorted(p.parent for p in path.glob(f"*/{CONFIG_FILE}"))
-    if not trials:
-        raise ValueError(f"{str(path)!r} is neither a trained-ego trial folder nor an experiment folder holding some ({CONFIG_FILE} missing)")
-    return trials
 
 
 def adapt_setup(cfg: AdaptConfig) -> tuple[EgoSetup, dict[str, str], ExperimentConfig]:
@@ -64,7 +58,7 @@ def adapt_setup(cfg: AdaptConfig) -> tuple[EgoSetup, dict[str, str], ExperimentC
     game = trained.env
     if pop.env != game:
         raise ValueError(f"population {pop.name!r} is for {pop.env!r}, but the ego in {str(trial)!r} was trained on {game!r}")
-    if cfg.head_init == "pick" and trained.method in SINGLE_HEAD_METHODS:
+    if cfg.head_init == "pick" and method(trained.method).single_head:
         raise ValueError(
             f"head_init 'pick' needs one head per training partner, but the ego in {str(trial)!r} was trained with "
             f"method {trained.method!r} (one shared head)"
@@ -86,18 +80,16 @@ def adapt_setup(cfg: AdaptConfig) -> tuple[EgoSetup, dict[str, str], ExperimentC
     )
     checkpoint = last_checkpoint(trial) / RL_MODULE_DIR
     load = {} if scratch else {TASK_ID: str(checkpoint / TASK_ID)}
-    if exp.method in SINGLE_HEAD_METHODS and not scratch:
+    if method(exp.method).single_head and not scratch:
         load[AGG_HEAD_ID] = str(checkpoint / AGG_HEAD_ID)
     return setup_for(exp, pop, [entry]), load, trained
 
 
-class AdaptTrainable(AlgorithmCheckpoints, tune.Trainable):
+class AdaptTrainable(AlgorithmTrainable):
     """One adaptation curve: evaluate, update, evaluate, ... until `steps` env steps."""
 
     def setup(self, config: dict[str, Any]) -> None:
-        import torch
-
-        torch.set_num_threads(1)
+        super().setup(config)
         self.cfg = AdaptConfig.model_validate({**{k: v for k, v in config.items() if k != PAIR_KEY}, **config.get(PAIR_KEY, {})})
         self.ego, load, trained = adapt_setup(self.cfg)
         defaults = ADAPT_DEFAULTS.get(self.ego.population.env, {})
@@ -117,7 +109,7 @@ class AdaptTrainable(AlgorithmCheckpoints, tune.Trainable):
 
     def _pick_head(self) -> HeadPick:
         """Try the fresh head and every trained head on the new partner; copy the winner into the new head."""
-        entry, new_head = self.ego.train[0], head_for(self.ego, self.ego.train[0].name)
+        entry, new_head = self.ego.train[0], self.ego.head_for(self.ego.train[0].name)
         trained = load_module(last_checkpoint(self.cfg.run))
         seed = self.cfg.seed + PICK_SEED
         players = {FRESH: ego_head_partner(self.algo.env_runner.module, new_head, seed)}
@@ -136,7 +128,7 @@ class AdaptTrainable(AlgorithmCheckpoints, tune.Trainable):
         entry = self.ego.train[0]
         r = ego_return(
             self.algo.env_runner.module,
-            head_for(self.ego, entry.name),
+            self.ego.head_for(entry.name),
             self.ego.population.env,
             self.ego.env_config,
             entry.build(),
@@ -160,13 +152,6 @@ class AdaptTrainable(AlgorithmCheckpoints, tune.Trainable):
     def load_extra(self, checkpoint_dir: Path) -> None:
         saved = json.loads((checkpoint_dir / STEPS_FILE).read_text())
         self.steps, self.offset, self.picked = saved["steps"], saved.get("offset", 0), saved.get("picked")
-
-    def cleanup(self) -> None:
-        self.algo.stop()
-
-    @classmethod
-    def default_resource_request(cls, config: dict[str, Any]) -> PlacementGroupFactory:
-        return PlacementGroupFactory([{"CPU": 1}])
 
 
 def adaptation_trials(cfg: AdaptConfig) -> list[dict[str, str]]:
@@ -194,7 +179,7 @@ def run_adaptation(raw: dict[str, Any], out: str | Path = "adaptation", storage:
     for pair in pairs:
         adapt_setup(AdaptConfig.model_validate({**raw, **pair}))  # wrong game, missing weights: fail early
     # One trial per (run, partner) pair; Tune grids cannot zip two axes, so the pair is one value.
-    results = fit(AdaptTrainable, raw, {**raw, PAIR_KEY: tune.grid_search(pairs)}, f"{TUNE_PREFIX}{cfg.name}", storage, address)
+    results = fit(AdaptTrainable, raw, {**raw, PAIR_KEY: tune.grid_search(pairs)}, f"{ADAPT_PREFIX}{cfg.name}", storage, address)
     frames = [r.metrics_dataframe[CURVE_COLUMNS] for r in results if r.metrics_dataframe is not None and not r.error]
     curves = pd.concat(frames, ignore_index=True).sort_values(["run", "partner", "steps"]) if frames else pd.DataFrame(columns=CURVE_COLUMNS)
     out = Path(out)

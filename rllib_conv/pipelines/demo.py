@@ -13,12 +13,15 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from rllib_conv import config, partners
+from rllib_conv import partners
+from rllib_conv.common.resources import config_file
 from rllib_conv.envs.bandit import CollaborativeBanditEnv, oracle_marginals
-from rllib_conv.pipelines.evaluate import bandit_states, load_module, task_probs
 from rllib_conv.pipelines.train import run
+from rllib_conv.training import experiment
+from rllib_conv.training.evaluate import load_module, task_probs
+from rllib_conv.training.marginals import bandit_states
 
-DEMO_CONFIG = Path(__file__).resolve().parents[2] / "tune_configs" / "bandit_modular.yaml"
+DEMO_CONFIG = "bandit_modular.yaml"  # a shipped config (`tune_configs/` in the repository)
 
 
 def _arms(p: np.ndarray, top: int = 3) -> str:
@@ -28,11 +31,11 @@ def _arms(p: np.ndarray, top: int = 3) -> str:
 
 def demo(storage: str | Path = "runs", address: str | None = None, overrides: list[str] = ()) -> None:
     """Train, then print per-partner returns and the task module's marginals."""
-    raw = config.load(DEMO_CONFIG, ["name=demo", *overrides])
+    raw = experiment.load(config_file(DEMO_CONFIG), ["name=demo", *overrides])
     result = run(raw, storage=storage, address=address)[0]
     if result.error is not None:
         raise RuntimeError(f"demo training failed: {result.error}")
-    exp = config.validate(raw)[0]
+    exp = experiment.validate(raw)[0]
     pop = partners.get(exp.population)
     m = result.metrics
     rows = [

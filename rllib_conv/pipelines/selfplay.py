@@ -28,23 +28,31 @@ from ray import tune
 from ray.rllib.algorithms.ppo import PPOConfig
 from ray.rllib.core.rl_module.multi_rl_module import MultiRLModuleSpec
 from ray.rllib.core.rl_module.rl_module import RLModuleSpec
-from ray.tune.execution.placement_groups import PlacementGroupFactory
 
 from rllib_conv import envs
-from rllib_conv.config import SelfPlayConfig, validate
+from rllib_conv.common.config_files import validate
+from rllib_conv.common.run_folders import (
+    POPULATION_FILE,
+    RL_MODULE_DIR,
+    SELFPLAY_PREFIX,
+    SELFPLAY_REPORT_FILE,
+    SELFPLAY_TRIAL_FILE,
+)
+from rllib_conv.common.sealed import seal, verify
 from rllib_conv.envs.rllib_adapter import PettingZooMultiAgentEnv
 from rllib_conv.learners.marginal_learner import MarginalPPOLearner
+from rllib_conv.learners.settings import LearnerSettings
 from rllib_conv.modules.task_module import TaskModule
 from rllib_conv.partners.play import play_episodes
 from rllib_conv.partners.population import PartnerEntry, Population
 from rllib_conv.partners.trained import PolicyPartner
-from rllib_conv.pipelines.algorithm import base_ppo_config
-from rllib_conv.pipelines.checkpoints import RL_MODULE_DIR, AlgorithmCheckpoints, seal, verify
-from rllib_conv.pipelines.tuning import fit, trial_resources
+from rllib_conv.pipelines.selfplay_config import SelfPlayConfig
+from rllib_conv.training.algorithm import base_ppo_config
+from rllib_conv.training.trainable import AlgorithmTrainable
+from rllib_conv.training.tuning import fit
 
 SEAT_PREFIX = "seat@"
 SHARED_SEAT = "seat@all"
-REPORT_FILE = "selfplay.json"
 
 
 def seat_module_id(cfg: SelfPlayConfig, agent: str) -> str:
@@ -85,7 +93,7 @@ def build_selfplay_config(cfg: SelfPlayConfig) -> PPOConfig:
         # A list, not a set: see build_ppo_config.
         .multi_agent(policies=list(specs), policy_mapping_fn=SeatMapping(cfg.shared_seats), policies_to_train=list(specs))
         .rl_module(rl_module_spec=MultiRLModuleSpec(rl_module_specs=specs))
-        .learners(learner_class=MarginalPPOLearner, learner_config_dict={"lam": 0.0, "adam_eps": cfg.ppo.adam_eps})
+        .learners(learner_class=MarginalPPOLearner, learner_config_dict=LearnerSettings(adam_eps=cfg.ppo.adam_eps).config_dict())
     )
 
 
@@ -102,13 +110,11 @@ def selfplay_score(module: Any, cfg: SelfPlayConfig, episodes: int, seed: int) -
     return float(play_episodes(env, seats, episodes, seed).mean())
 
 
-class SelfPlayTrainable(AlgorithmCheckpoints, tune.Trainable):
+class SelfPlayTrainable(AlgorithmTrainable):
     """One self-play pair: trains until it passes the score gate or its step budget runs out."""
 
     def setup(self, config: dict[str, Any]) -> None:
-        import torch
-
-        torch.set_num_threads(1)
+        super().setup(config)
         self.cfg = SelfPlayConfig.model_validate(config).resolve()
         self.algo = build_selfplay_config(self.cfg).build_algo()
         self.passed, self.score, self.steps_to_gate = False, math.nan, None
@@ -142,16 +148,9 @@ class SelfPlayTrainable(AlgorithmCheckpoints, tune.Trainable):
                 "env_steps": steps,
                 "wall_s": time.perf_counter() - self._start,
             }
-            Path(self.logdir, REPORT_FILE).write_text(json.dumps(report, indent=2) + "\n")
+            Path(self.logdir, SELFPLAY_TRIAL_FILE).write_text(json.dumps(report, indent=2) + "\n")
             out.update({k: v for k, v in report.items() if k not in out})
         return out
-
-    def cleanup(self) -> None:
-        self.algo.stop()
-
-    @classmethod
-    def default_resource_request(cls, config: dict[str, Any]) -> PlacementGroupFactory:
-        return trial_resources(config.get("run"))
 
 
 def write_population(cfg: SelfPlayConfig, results: tune.ResultGrid, folder: Path) -> tuple[Population, pd.DataFrame]:
@@ -163,7 +162,7 @@ def write_population(cfg: SelfPlayConfig, results: tune.ResultGrid, folder: Path
         pair = r.config["pair"]
         name = f"sp{pair:02d}"
         split = "train" if pair < cfg.train_pairs else "test"
-        report_path = Path(r.path) / REPORT_FILE
+        report_path = Path(r.path) / SELFPLAY_TRIAL_FILE
         report = json.loads(report_path.read_text()) if report_path.is_file() else {"pair": pair, "passed": False, "error": str(r.error)}
         rows.append({"partner": name, "split": split, **report})
         if not report.get("passed") or r.checkpoint is None:
@@ -193,9 +192,9 @@ def write_population(cfg: SelfPlayConfig, results: tune.ResultGrid, folder: Path
         description=f"self-play partners (seat {cfg.partner_agent}), gate {cfg.gate.score} over {cfg.gate.episodes} episodes",
         partners=entries,
     )
-    population.save(folder / "population.json")
+    population.save(folder / POPULATION_FILE)
     report = pd.DataFrame(rows)
-    report.to_csv(folder / "selfplay_report.csv", index=False)
+    report.to_csv(folder / SELFPLAY_REPORT_FILE, index=False)
     return population, report
 
 
@@ -214,7 +213,7 @@ def train_population(
         raise ValueError(f"population folder {str(target)!r} already exists; choose another name or pass --overwrite")
     pairs = cfg.train_pairs + cfg.test_pairs
     checkpoint = tune.CheckpointConfig(num_to_keep=1, checkpoint_frequency=cfg.run.checkpoint_every, checkpoint_at_end=True)
-    results = fit(SelfPlayTrainable, raw, {**raw, "pair": tune.grid_search(list(range(pairs)))}, f"selfplay-{cfg.name}", storage, address, checkpoint)
+    results = fit(SelfPlayTrainable, raw, {**raw, "pair": tune.grid_search(list(range(pairs)))}, f"{SELFPLAY_PREFIX}{cfg.name}", storage, address, checkpoint)
     target.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f".{cfg.name}.", dir=target.parent))
     try:
@@ -224,4 +223,4 @@ def train_population(
         staging.rename(target)
     finally:
         shutil.rmtree(staging, ignore_errors=True)
-    return Population.load(target / "population.json"), report
+    return Population.load(target / POPULATION_FILE), report

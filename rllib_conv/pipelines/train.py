@@ -17,31 +17,20 @@ from typing import Any
 import numpy as np
 import yaml
 from ray import tune
-from ray.tune.execution.placement_groups import PlacementGroupFactory
 
-from rllib_conv.config import GRID_KEY, SINGLE_HEAD_METHODS, ExperimentConfig, validate
+from rllib_conv.common.methods import method
+from rllib_conv.common.run_folders import CONFIG_FILE, EVAL_FILE
 from rllib_conv.envs.oracles import has_oracle
 from rllib_conv.learners.marginal_learner import HEAD_L2_KEY, MARGINAL_REG_KEY
-from rllib_conv.modules.multi import AGG_HEAD_ID, ego_id, partner_id
-from rllib_conv.pipelines.algorithm import EgoSetup, build_ppo_config, resolve
-from rllib_conv.pipelines.checkpoints import AlgorithmCheckpoints
-from rllib_conv.pipelines.evaluate import ego_return, marginal_distances
-from rllib_conv.pipelines.maml import MetaTrainer
-from rllib_conv.pipelines.marginals import TASK_OUTPUT_METHODS, marginal_states
-from rllib_conv.pipelines.tuning import fit, trial_resources
-
-EVAL_FILE = "eval.json"
-CONFIG_FILE = "config.yaml"
-
-
-def trial_config(trial: str | Path) -> ExperimentConfig:
-    """The resolved ego config a trained-ego trial folder was run with (its `config.yaml`)."""
-    return ExperimentConfig.model_validate(yaml.safe_load((Path(trial) / CONFIG_FILE).read_text()))
-
-
-def head_for(setup: EgoSetup, partner_name: str) -> str:
-    """The ego head that plays with `partner_name` (the shared head for BaselineAgg)."""
-    return AGG_HEAD_ID if setup.exp.method in SINGLE_HEAD_METHODS else ego_id(partner_name)
+from rllib_conv.modules.multi import AGG_HEAD_ID, partner_id
+from rllib_conv.training.algorithm import build_ppo_config
+from rllib_conv.training.ego_setup import EgoSetup, resolve
+from rllib_conv.training.evaluate import ego_return
+from rllib_conv.training.experiment import ExperimentConfig, validate
+from rllib_conv.training.maml import MetaTrainer
+from rllib_conv.training.marginals import marginal_distances, marginal_states
+from rllib_conv.training.trainable import AlgorithmTrainable
+from rllib_conv.training.tuning import fit, to_param_space
 
 
 def summarize(result: dict[str, Any], setup: EgoSetup) -> dict[str, Any]:
@@ -65,31 +54,30 @@ def evaluate(module: Any, setup: EgoSetup, episodes: int, seed: int = 0) -> dict
     out: dict[str, Any] = {}
     game = setup.population.env
     for e in setup.train:
-        r = ego_return(module, head_for(setup, e.name), game, setup.env_config, e.build(), setup.ego_agent, setup.partner_agent, episodes, seed)
+        r = ego_return(module, setup.head_for(e.name), game, setup.env_config, e.build(), setup.ego_agent, setup.partner_agent, episodes, seed)
         for key, value in r.items():
             out[f"eval/{key}/{e.name}"] = value
-    if has_oracle(game) and setup.exp.method in TASK_OUTPUT_METHODS:
+    marginals = method(setup.exp.method).marginals
+    if has_oracle(game) and marginals is not None:
         obs, mask = marginal_states(setup.population, episodes, seed)
-        head = AGG_HEAD_ID if setup.exp.method in SINGLE_HEAD_METHODS else None
+        head = AGG_HEAD_ID if marginals == "network" else None
         for key, value in marginal_distances(module, game, setup.env_config, obs, mask, head).items():
             out[f"eval/marginal_distance/{key}"] = value
     return out
 
 
-class EgoTrainable(AlgorithmCheckpoints, tune.Trainable):
+class EgoTrainable(AlgorithmTrainable):
     """One ego-training trial: builds the PPO algorithm, trains it, checkpoints and evaluates it."""
 
     def setup(self, config: dict[str, Any]) -> None:
-        import torch
-
         begin = time.perf_counter()
-        torch.set_num_threads(1)
+        super().setup(config)
         self.ego = resolve(ExperimentConfig.model_validate(config))
         self.algo = build_ppo_config(self.ego).build_algo()
         maml = self.ego.exp.maml
         self.meta = (
             MetaTrainer(self.algo, [e.name for e in self.ego.train], maml.inner_iterations, maml.outer_step)
-            if self.ego.exp.method == "maml"
+            if method(self.ego.exp.method).meta_learned
             else None
         )
         Path(self.logdir, CONFIG_FILE).write_text(yaml.safe_dump(self.ego.exp.model_dump(), sort_keys=False))
@@ -107,27 +95,11 @@ class EgoTrainable(AlgorithmCheckpoints, tune.Trainable):
             metrics.update(final)
         return metrics
 
-    def cleanup(self) -> None:
-        self.algo.stop()
-
-    @classmethod
-    def default_resource_request(cls, config: dict[str, Any]) -> PlacementGroupFactory:
-        return trial_resources(config.get("run"))
-
-
-def to_param_space(raw: Any) -> Any:
-    """Replace `{grid_search: [...]}` nodes of a raw config by `tune.grid_search`."""
-    if isinstance(raw, dict):
-        if set(raw) == {GRID_KEY}:
-            return tune.grid_search(raw[GRID_KEY])
-        return {k: to_param_space(v) for k, v in raw.items()}
-    return raw
-
 
 def run(
     raw: dict[str, Any], storage: str | Path = "runs", address: str | None = None, progress: str = "lines", resume: bool = False
 ) -> tune.ResultGrid:
-    """Run the experiment `raw` (already validated by `config.load`) through Tune; return its results.
+    """Run the experiment `raw` (already validated by `experiment.load`) through Tune; return its results.
 
     Results go to `storage/<name>/`, with the experiment's config in `experiment.yaml`;
     running the same experiment again continues it (see `tuning.fit` for `progress` and `resume`).

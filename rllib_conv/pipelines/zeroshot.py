@@ -17,23 +17,25 @@ from pathlib import Path
 from typing import Any
 
 import pandas as pd
-import torch
 from ray import tune
-from ray.tune.execution.placement_groups import PlacementGroupFactory
 
 from rllib_conv import partners
-from rllib_conv.config import ZEROSHOT_DEFAULTS, ExperimentConfig, ZeroShotConfig, validate
+from rllib_conv.common import methods
+from rllib_conv.common.config_files import validate
+from rllib_conv.common.run_folders import RL_MODULE_DIR, ZEROSHOT_PREFIX, trial_folders
+from rllib_conv.envs.defaults import ZEROSHOT_DEFAULTS
 from rllib_conv.modules.mlp import mlp
 from rllib_conv.modules.multi import TASK_ID, ego_id
-from rllib_conv.pipelines.adapt import trial_folders
-from rllib_conv.pipelines.algorithm import build_ppo_config, push_learner_weights, setup_for
-from rllib_conv.pipelines.checkpoints import RL_MODULE_DIR, last_checkpoint
-from rllib_conv.pipelines.evaluate import ego_return
-from rllib_conv.pipelines.train import trial_config
-from rllib_conv.pipelines.tuning import fit
+from rllib_conv.pipelines.zeroshot_config import ZeroShotConfig
+from rllib_conv.training.algorithm import build_ppo_config
+from rllib_conv.training.checkpoints import last_checkpoint
+from rllib_conv.training.ego_setup import setup_for
+from rllib_conv.training.evaluate import ego_return
+from rllib_conv.training.experiment import ExperimentConfig, trial_config
+from rllib_conv.training.trainable import AlgorithmTrainable
+from rllib_conv.training.tuning import fit
+from rllib_conv.training.weights import push_learner_weights
 
-COMPOSABLE_METHODS = ("modular", "no_task_logits", "oracle")
-TUNE_PREFIX = "zeroshot-"  # the Tune experiment of zero-shot `name` is `zeroshot-<name>`
 RESULT_COLUMNS = ["run", "method", "lam", "seed", "partner", "mean_return", "stderr", "exact_return"]
 
 
@@ -41,8 +43,9 @@ def zeroshot_plan(cfg: ZeroShotConfig) -> dict[str, Any]:
     """Check the run can be composed and gather what the three steps need."""
     trial = Path(cfg.run)
     trained = trial_config(trial)
-    if trained.method not in COMPOSABLE_METHODS:
-        raise ValueError(f"method {trained.method!r} is not modular: zero-shot composition needs one of {COMPOSABLE_METHODS}")
+    composable = tuple(methods.names(composable=True))
+    if trained.method not in composable:
+        raise ValueError(f"method {trained.method!r} is not modular: zero-shot composition needs one of {composable}")
     old = partners.get(trained.population)
     new = partners.get(cfg.new_population or f"{old.name}-newtask")
     for split in ("train", "test"):
@@ -71,7 +74,7 @@ def step_experiments(trained: ExperimentConfig, cfg: ZeroShotConfig) -> dict[str
     """
 
     def weight(lam: float | None) -> float:
-        return (trained.lam if lam is None else lam) if trained.method == "modular" else 0.0
+        return (trained.lam if lam is None else lam) if methods.method(trained.method).regularised else 0.0
 
     ppo = trained.ppo.model_copy(update={"entropy_coeff": cfg.task_entropy})
     return {
@@ -89,11 +92,11 @@ def step_experiments(trained: ExperimentConfig, cfg: ZeroShotConfig) -> dict[str
     }
 
 
-class ZeroShotTrainable(tune.Trainable):
+class ZeroShotTrainable(AlgorithmTrainable):
     """The three zero-shot steps for one trained ego; one RLlib iteration per Tune step."""
 
     def setup(self, config: dict[str, Any]) -> None:
-        torch.set_num_threads(1)
+        super().setup(config)
         self.cfg = ZeroShotConfig.model_validate(config)
         self.plan = zeroshot_plan(self.cfg)
         old, ckpt = self.plan["old"], self.plan["checkpoint"]
@@ -144,13 +147,6 @@ class ZeroShotTrainable(tune.Trainable):
             out["done"] = True
         return out
 
-    def cleanup(self) -> None:
-        self.algo.stop()
-
-    @classmethod
-    def default_resource_request(cls, config: dict[str, Any]) -> PlacementGroupFactory:
-        return PlacementGroupFactory([{"CPU": 1}])
-
 
 def run_zeroshot(raw: dict[str, Any], out: str | Path = "zeroshot", storage: str | Path = "runs", address: str | None = None) -> pd.DataFrame:
     """Run the three steps for every run in `raw`; write and return one row per (run, test partner)."""
@@ -162,7 +158,7 @@ def run_zeroshot(raw: dict[str, Any], out: str | Path = "zeroshot", storage: str
         ZeroShotTrainable,
         raw,
         {**raw, "run": tune.grid_search(trials)},
-        f"{TUNE_PREFIX}{cfg.name}",
+        f"{ZEROSHOT_PREFIX}{cfg.name}",
         storage,
         address,
         tune.CheckpointConfig(checkpoint_at_end=False),

@@ -13,7 +13,9 @@ five tries each, both picks revealed after each try. Sessions are recorded under
 `--out` (`recording.py`): bandit sessions in the exact format of
 `analysis/data/user_study.csv`, one row per pair, task, context and try.
 
-Modules: `agent` (the adapting agent, hindsight targets, loading runs), `rooms` (the
-game state machines, turn checks, what each player sees), `recording` (atomic CSV
-appends), `server` (http.server JSON API + static page in `static/`).
+Modules: `agent` (the adapting agent and its hindsight targets), `ego_run` (a trained ego
+read from its trial folder as the agent's prior), `room`, `bandit_room`, `blocks_room` (the
+game state machines, turn checks, what each player sees), `lobby` (creating and finding
+rooms), `recording` (atomic CSV appends), `server` (http.server JSON API + static page in
+`static/`), `command` (the CLI's `play` arguments).
 """

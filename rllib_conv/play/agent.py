@@ -46,9 +46,7 @@ Hindsight targets per game (`bandit_targets`, `blocks_p1_targets`, `blocks_p2_ta
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Any, Callable
+from typing import Callable
 
 import numpy as np
 
@@ -77,7 +75,7 @@ DEFAULT_STEP_SIZE = 3.0
 MIN_PROB = 1e-6
 
 
-def _legal_renormalised(probs: np.ndarray, mask: np.ndarray) -> np.ndarray:
+def legal_renormalised(probs: np.ndarray, mask: np.ndarray) -> np.ndarray:
     probs = np.asarray(probs, dtype=np.float64) * (np.asarray(mask) > 0)
     total = probs.sum(axis=-1, keepdims=True)
     # A prior that gives no mass to any legal action falls back to uniform over legal ones.
@@ -87,7 +85,7 @@ def _legal_renormalised(probs: np.ndarray, mask: np.ndarray) -> np.ndarray:
 
 def uniform_prior(obs: np.ndarray, mask: np.ndarray) -> np.ndarray:
     """Uniform over the legal actions: a task module that knows no rules."""
-    return _legal_renormalised(np.ones(np.shape(mask)), mask)
+    return legal_renormalised(np.ones(np.shape(mask)), mask)
 
 
 def bandit_oracle_prior(prizes: np.ndarray) -> Prior:
@@ -96,20 +94,7 @@ def bandit_oracle_prior(prizes: np.ndarray) -> Prior:
 
     def prior(obs: np.ndarray, mask: np.ndarray) -> np.ndarray:
         contexts = np.asarray(obs).argmax(axis=-1)
-        return _legal_renormalised(marginals[contexts], mask)
-
-    return prior
-
-
-def module_prior(module: Any, head_id: str | None = None) -> Prior:
-    """The task module's action distribution of a trained ego (`head_id`: a single-network method's head)."""
-    from rllib_conv.pipelines.evaluate import head_probs, task_probs  # lazy: imports Ray
-
-    def prior(obs: np.ndarray, mask: np.ndarray) -> np.ndarray:
-        obs = np.asarray(obs, dtype=np.float32)
-        mask = np.asarray(mask, dtype=np.float32)
-        probs = task_probs(module, obs, mask) if head_id is None else head_probs(module, head_id, obs, mask)
-        return _legal_renormalised(probs, mask)
+        return legal_renormalised(marginals[contexts], mask)
 
     return prior
 
@@ -124,7 +109,7 @@ def responder_prior(obs: np.ndarray, mask: np.ndarray) -> np.ndarray:
             out[i, free] = 1.0 / len(free)
         else:
             out[i, PASS] = 1.0
-    return _legal_renormalised(out, mask)
+    return legal_renormalised(out, mask)
 
 
 class PartnerTable:
@@ -265,84 +250,3 @@ def blocks_p2_targets(history: list[tuple[int, int]], goal: tuple[int, int]) -> 
         return []
     obs = encode_observation(_goal_grid(*goal), grid, 1, sees_goal=False)  # P2 sees the goal hidden
     return [(obs, np.ones(BLOCKS_ACTIONS, dtype=np.int8), int(goal[1]))]
-
-
-# --- trained runs ----------------------------------------------------------------------
-
-
-@dataclass
-class EgoRun:
-    """A trained ego read from its trial folder: config, population, seat and task-module prior."""
-
-    trial: Path
-    exp: Any  # ExperimentConfig
-    population: Any  # Population
-    prior: Prior = field(repr=False)
-
-    @property
-    def game(self) -> str:
-        """The game the ego was trained on ("bandit", "blocks", ...)."""
-        return self.population.env
-
-    @property
-    def env_config(self) -> dict[str, Any]:
-        """The env config of the ego's training task (the population's)."""
-        return dict(self.population.env_config)
-
-    @property
-    def ego_seat(self) -> int:
-        """The seat (1 = player_0, 2 = player_1) the ego was trained in."""
-        return 2 if self.population.partner_agent == "player_0" else 1
-
-    def describe(self) -> str:
-        """One line for people: method, lam, population, folder."""
-        return f"{self.exp.method} ego (lam {self.exp.lam:g}) trained with {self.population.name}, {self.trial.name}"
-
-
-def load_run(path: str | Path, what: str = "RUN") -> EgoRun:
-    """Read a trained-ego trial folder (or an experiment folder holding exactly one trial).
-
-    Raises ValueError naming `what` (the argument) if the folder is not a trained ego with a
-    checkpoint, holds several trials, or its method has no marginal estimate to use as prior.
-    """
-
-    from rllib_conv import partners
-    from rllib_conv.config import SINGLE_HEAD_METHODS
-    from rllib_conv.modules.multi import AGG_HEAD_ID
-    from rllib_conv.pipelines.adapt import last_checkpoint, trial_folders
-    from rllib_conv.pipelines.evaluate import load_module
-    from rllib_conv.pipelines.train import CONFIG_FILE, trial_config
-
-    path = Path(path)
-    if not path.exists():
-        raise ValueError(f"{what} {str(path)!r} does not exist; expected a trained-ego trial folder (with {CONFIG_FILE} and checkpoint_*/)")
-    try:
-        trials = trial_folders(path)
-    except ValueError as exc:
-        raise ValueError(f"{what}: {exc}") from None
-    if len(trials) != 1:
-        names = ", ".join(t.name for t in trials[:3]) + (", ..." if len(trials) > 3 else "")
-        raise ValueError(f"{what} {str(path)!r} holds {len(trials)} trained-ego trials ({names}); pass one trial folder")
-    trial = trials[0]
-    exp = trial_config(trial)
-    if exp.method in ("no_task_logits",):
-        raise ValueError(f"{what} {str(trial)!r} is a {exp.method!r} ego: its task module is not a marginal estimate; use a modular run")
-    try:
-        checkpoint = last_checkpoint(trial)
-    except ValueError as exc:
-        raise ValueError(f"{what}: {exc}") from None
-    module = load_module(checkpoint)
-    head = AGG_HEAD_ID if exp.method in SINGLE_HEAD_METHODS else None
-    return EgoRun(trial=trial, exp=exp, population=partners.get(exp.population), prior=module_prior(module, head))
-
-
-def require_user_study(run: EgoRun, new_task: bool, what: str) -> None:
-    """Raise ValueError unless `run` was trained on the user-study bandit's Train (or, `new_task`, Test) task."""
-    cfg = run.env_config
-    task = "Test" if new_task else "Train"
-    if run.game != "bandit" or cfg.get("task") != "user_study" or bool(cfg.get("new_task", False)) != new_task:
-        wanted = "bandit-user-study-newtask" if new_task else "bandit-user-study"
-        raise ValueError(
-            f"{what} {str(run.trial)!r} was trained on {run.game} with {cfg} (population {run.population.name!r}); "
-            f"the study's {task} task needs an ego trained on the user-study bandit's {task} task (e.g. population {wanted})"
-        )

@@ -31,8 +31,8 @@ import threading
 from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping, Sequence
 
-from rllib_conv.partners.user_study import COLUMNS as USER_STUDY_COLUMNS
-from rllib_conv.partners.user_study import load_user_study
+from rllib_conv.common.user_study_table import COLUMNS as USER_STUDY_COLUMNS
+from rllib_conv.common.user_study_table import load_user_study
 
 BLOCKS_COLUMNS: tuple[str, ...] = ("pair", "task", "game", "move", "player", "action", "red_goal", "blue_goal", "score")
 SESSIONS_FILE = "sessions.jsonl"

@@ -13,7 +13,7 @@ Errors answer `{"error": "<sentence for the page>"}` with status 400 (bad value)
 a player of that room), 404 (no such room or path), 409 (not now: out of turn, already
 picked, room full, session over) or 500 (recording failed; nothing was played).
 
-`build_lobby` turns the command-line arguments into a `rooms.Lobby` (loading the trained
+`build_lobby` turns the command-line arguments into a `lobby.Lobby` (loading the trained
 egos), `serve` runs the server until Ctrl-C.
 """
 
@@ -29,8 +29,12 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import parse_qs, urlsplit
 
+from rllib_conv.envs.bandit import user_study_prizes
+from rllib_conv.play.agent import bandit_oracle_prior, uniform_prior
+from rllib_conv.play.ego_run import load_run, require_user_study
+from rllib_conv.play.lobby import Lobby
 from rllib_conv.play.recording import SessionRecorder
-from rllib_conv.play.rooms import DEFAULT_GAMES, GAMES, TRIES, AgentSettings, Lobby, PlayError
+from rllib_conv.play.room import DEFAULT_GAMES, GAMES, TRIES, AgentSettings, PlayError
 
 HOST = "127.0.0.1"
 LONG_POLL_S = 20.0
@@ -201,8 +205,6 @@ def build_lobby(
     Blocks: `run` is an ego trained on blocks; its task (original or new) is the session's.
     Without `run` only two-person rooms are offered.
     """
-    from rllib_conv.play.agent import bandit_oracle_prior, load_run, require_user_study, uniform_prior
-
     if game is not None and game not in GAMES:
         raise ValueError(f"--game must be one of {list(GAMES)}, got {game!r}")
     if test_prior not in TEST_PRIORS:
@@ -231,8 +233,6 @@ def build_lobby(
             test = test_ego.prior
             info["test_run"] = str(test_ego.trial)
         else:
-            from rllib_conv.envs.bandit import user_study_prizes
-
             test = bandit_oracle_prior(user_study_prizes(new_task=True)) if test_prior == "oracle" else uniform_prior
             info["test_prior"] = test_prior
         priors = {"train": ego.prior, "test": test}

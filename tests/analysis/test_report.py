@@ -8,7 +8,9 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from analysis.report import _better, _trained_steps, _verdict, build_report
+from analysis.report import build_report
+from analysis.report.sections.status import trained_steps
+from analysis.report.verdicts import compare, overall_verdict
 
 FIXTURE = Path(__file__).parent / "fixtures" / "repro"
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
@@ -38,8 +40,8 @@ def test_status_names_the_env_steps_each_ego_trained_for(text: str) -> None:
     # The fixture's 4 trials each end their progress.csv at 2048 env steps.
     assert "| none | 4 | 2,048 |" in text
     curves = pd.DataFrame({"run": ["a", "a", "b", "b"], "steps": [0, 301_440, 0, 1_000_320]})
-    assert _trained_steps(curves) == "301,440–1,000,320"
-    assert _trained_steps(curves.iloc[:0]) == "—"
+    assert trained_steps(curves) == "301,440–1,000,320"
+    assert trained_steps(curves.iloc[:0]) == "—"
 
 
 def test_zeroshot_numbers_and_flags(text: str) -> None:
@@ -68,7 +70,7 @@ def test_adaptation_auc_row(text: str) -> None:
     ],
 )
 def test_better_tells_a_tie_inside_overlapping_intervals_from_a_loss(a, b, outcome) -> None:
-    assert _better(a, b) == outcome
+    assert compare(a, b) == outcome
 
 
 @pytest.mark.parametrize(
@@ -81,7 +83,7 @@ def test_better_tells_a_tie_inside_overlapping_intervals_from_a_loss(a, b, outco
     ],
 )
 def test_verdict_counts_a_tie_as_not_shown_and_a_loss_as_contradicted(outcomes, verdict) -> None:
-    assert _verdict(outcomes) == verdict
+    assert overall_verdict(outcomes) == verdict
 
 
 def test_user_study_section(text: str) -> None:
@@ -195,7 +197,7 @@ def test_a_missing_root_is_an_error_and_writes_nothing(tmp_path: Path) -> None:
 
 
 def test_direction_knows_that_smaller_distances_are_better() -> None:
-    from analysis.report import Comparison
+    from analysis.report.verdicts import Comparison
 
     distance = Comparison("marginals", "Arms 2, ours", 0.02, "src", 0.003, 0.001, 0.005, 3, higher_is_better=False)
     ret = Comparison("zero-shot", "Arms 2, ours", 0.89, "src", 0.996, 0.995, 0.998, 12)

@@ -74,7 +74,7 @@ def test_table_is_not_the_figure(study) -> None:
 
 
 def test_several_files_pool(study, tmp_path: Path) -> None:
-    from rllib_conv.partners.user_study import DEFAULT_PATH
+    from rllib_conv.common.user_study_table import DEFAULT_PATH
 
     for name in ("a.csv", "b.csv"):
         shutil.copy(DEFAULT_PATH, tmp_path / name)

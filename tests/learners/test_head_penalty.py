@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 import torch
 
-from rllib_conv.config import ExperimentConfig
 from rllib_conv.learners.marginal_learner import HEAD_L2_KEY, MARGINAL_REG_KEY, head_size
+from rllib_conv.training.experiment import ExperimentConfig
 from tests.helpers import bandit_setup, build_learner, hand_batch
 
 

@@ -9,7 +9,7 @@ from ray.rllib.algorithms.ppo.torch.ppo_torch_learner import PPOTorchLearner
 
 from rllib_conv.learners.marginal_learner import MARGINAL_REG_KEY, marginal_distance
 from rllib_conv.modules.multi import TASK_ID
-from rllib_conv.pipelines.evaluate import head_probs, task_probs
+from rllib_conv.training.evaluate import head_probs, task_probs
 from tests.helpers import bandit_setup, build_learner, hand_batch
 
 

@@ -9,8 +9,10 @@ import torch
 from rllib_conv.envs.blocks import BLUE, PASS, RED, encode_observation
 from rllib_conv.envs.oracles import oracle_for
 from rllib_conv.modules import AGG_HEAD_ID, TASK_ID
-from rllib_conv.pipelines.algorithm import build_ppo_config, resolve
-from rllib_conv.pipelines.evaluate import bandit_states, head_probs, task_probs
+from rllib_conv.training.algorithm import build_ppo_config
+from rllib_conv.training.ego_setup import resolve
+from rllib_conv.training.evaluate import head_probs, task_probs
+from rllib_conv.training.marginals import bandit_states
 from tests.helpers import bandit_setup, build_learner
 
 
@@ -102,7 +104,7 @@ def test_blocks_oracle_hand_rule(new_task: bool, state: tuple, optimal: list[int
 
 @pytest.mark.parametrize("method", ["agg", "no_task_logits", "oracle"])
 def test_every_method_trains_an_iteration(ray_session, method: str) -> None:
-    from rllib_conv.config import ExperimentConfig
+    from rllib_conv.training.experiment import ExperimentConfig
 
     exp = ExperimentConfig(population="bandit-s2-hand", method=method, model={"hidden": 8}, ppo={"rollout_per_partner": 16, "num_epochs": 1})
     algo = build_ppo_config(resolve(exp)).build_algo()
@@ -114,7 +116,7 @@ def test_every_method_trains_an_iteration(ray_session, method: str) -> None:
 
 
 def test_hanabi_ego_only_ever_plays_legal_moves(ray_session) -> None:
-    from rllib_conv.config import ExperimentConfig
+    from rllib_conv.training.experiment import ExperimentConfig
 
     # HanabiEnv raises on any illegal move, so a clean iteration proves sampling is masked.
     exp = ExperimentConfig(population="hanabi-scripted", lam=0.5, model={"hidden": 16}, ppo={"rollout_per_partner": 200, "minibatch_size": 50, "num_epochs": 1})
@@ -128,7 +130,7 @@ def test_hanabi_ego_only_ever_plays_legal_moves(ray_session) -> None:
 
 def test_identical_moves_are_merged_before_comparing_marginals() -> None:
     from rllib_conv.envs.oracles import canonical_actions
-    from rllib_conv.pipelines.evaluate import merge_actions
+    from rllib_conv.training.marginals import merge_actions
 
     # Red already on its goal (cell 0): placing it on 0 again is the same move as passing.
     obs = _p1_obs(0, 3, 0, 2)[None]

@@ -8,16 +8,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from rllib_conv.common.user_study_table import CONTEXTS, DEFAULT_PATH, USER_STUDY_GOOD_ARMS, first_try_scores, load_user_study
 from rllib_conv.partners.bandit import BanditConventionPartner
 from rllib_conv.partners.kinds import partner_from_spec
-from rllib_conv.partners.user_study import (
-    CONTEXTS,
-    DEFAULT_PATH,
-    USER_STUDY_GOOD_ARMS,
-    first_try_scores,
-    load_user_study,
-    user_study_partners,
-)
+from rllib_conv.partners.user_study import user_study_partners
 
 COLUMNS = ["pair", "task", "context", "try", "action_1", "action_2"]
 

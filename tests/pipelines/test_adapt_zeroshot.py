@@ -8,12 +8,15 @@ import numpy as np
 import pytest
 import torch
 
-from rllib_conv.config import AdaptConfig, ExperimentConfig
 from rllib_conv.modules import AGG_HEAD_ID, TASK_ID, ego_id
 from rllib_conv.pipelines.adapt import CURVE_COLUMNS, adapt_setup, run_adaptation
-from rllib_conv.pipelines.algorithm import build_ppo_config, resolve, snapshot
-from rllib_conv.pipelines.maml import META_MODULES, MetaTrainer, outer_update
+from rllib_conv.pipelines.adapt_config import AdaptConfig
 from rllib_conv.pipelines.zeroshot import run_zeroshot
+from rllib_conv.training.algorithm import build_ppo_config
+from rllib_conv.training.ego_setup import resolve
+from rllib_conv.training.experiment import ExperimentConfig
+from rllib_conv.training.maml import META_MODULES, MetaTrainer, outer_update
+from rllib_conv.training.weights import snapshot
 from tests.helpers import digest
 
 
@@ -68,8 +71,8 @@ def test_zero_shot_composes_new_task_module_with_test_partner_heads(bandit_egos,
 def test_zero_shot_refuses_non_modular_runs(tmp_path) -> None:
     import yaml
 
-    from rllib_conv.config import ZeroShotConfig
     from rllib_conv.pipelines.zeroshot import zeroshot_plan
+    from rllib_conv.pipelines.zeroshot_config import ZeroShotConfig
 
     trial = tmp_path / "trial"
     (trial / "checkpoint_000000").mkdir(parents=True)
@@ -80,8 +83,8 @@ def test_zero_shot_refuses_non_modular_runs(tmp_path) -> None:
 
 @pytest.mark.parametrize("method", ["modular", "no_task_logits"])
 def test_zero_shot_steps_carry_their_settings(method: str) -> None:
-    from rllib_conv.config import ZeroShotConfig
     from rllib_conv.pipelines.zeroshot import step_experiments
+    from rllib_conv.pipelines.zeroshot_config import ZeroShotConfig
 
     modular = method == "modular"
     trained = ExperimentConfig(population="blocks-perm", method=method, lam=0.5 if modular else 0.0, head_l2=0.01 if modular else 0.0)

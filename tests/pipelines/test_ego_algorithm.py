@@ -10,13 +10,15 @@ import textwrap
 import numpy as np
 import torch
 
-from rllib_conv.config import ExperimentConfig
 from rllib_conv.envs.blocks import decode_observation
 from rllib_conv.learners.marginal_learner import MarginalPPOLearner
 from rllib_conv.modules import TASK_ID, ego_id, partner_id
-from rllib_conv.pipelines.algorithm import build_ppo_config, resolve
-from rllib_conv.pipelines.evaluate import bandit_states, head_probs
 from rllib_conv.pipelines.train import summarize
+from rllib_conv.training.algorithm import build_ppo_config
+from rllib_conv.training.ego_setup import resolve
+from rllib_conv.training.evaluate import head_probs
+from rllib_conv.training.experiment import ExperimentConfig
+from rllib_conv.training.marginals import bandit_states
 
 SEEN: dict[str, list] = {}
 
@@ -118,7 +120,8 @@ def test_checkpoint_round_trip_in_a_fresh_process(ray_session, tmp_path) -> None
         f"""
         import json, ray
         from ray.rllib.algorithms.algorithm import Algorithm
-        from rllib_conv.pipelines.evaluate import bandit_states, head_probs
+        from rllib_conv.training.marginals import bandit_states
+        from rllib_conv.training.evaluate import head_probs
         ray.init(num_cpus=1, include_dashboard=False, log_to_driver=False)
         algo = Algorithm.from_checkpoint({str(tmp_path)!r})
         obs, _ = bandit_states({setup.env_config!r})

@@ -10,12 +10,12 @@ import pytest
 import yaml
 
 from rllib_conv import envs
-from rllib_conv.config import AdaptConfig
 from rllib_conv.partners.bandit import BanditConventionPartner
 from rllib_conv.partners.blocks import BlocksLeader, PermutationPartner, derangements
 from rllib_conv.partners.play import episode_stream
 from rllib_conv.pipelines.adapt import adapt_setup, run_adaptation
-from rllib_conv.pipelines.head_pick import pick_head
+from rllib_conv.pipelines.adapt_config import AdaptConfig
+from rllib_conv.training.head_pick import pick_head
 
 PARTNER_ARMS = [0, 1, 2, 3]  # bandit, symmetric 2: contexts 0 and 1 are symmetric (arm c or c + 4)
 

@@ -9,8 +9,9 @@ import pandas as pd
 import pytest
 
 from rllib_conv.cli import main
-from rllib_conv.pipelines.reproduce import MODULAR_05, Reproduction, narrow, plan_for, read_marker
-from rllib_conv.pipelines.train import CONFIG_FILE, EVAL_FILE
+from rllib_conv.common.run_folders import CONFIG_FILE, EVAL_FILE, read_marker
+from rllib_conv.pipelines.plans import narrow, plan_for
+from rllib_conv.pipelines.reproduce import Reproduction
 
 
 def test_narrow_keeps_the_named_populations_and_methods() -> None:
@@ -90,7 +91,7 @@ def test_a_stage_reruns_only_when_the_plan_asks_for_more_than_its_marker_covers(
 
 def test_egos_train_for_the_papers_budget_unless_train_steps_sets_another(tmp_path, monkeypatch) -> None:
     default = Reproduction(narrow(plan_for("blocks"), ["blocks-perm"], ["agg"]), tmp_path)
-    assert "run" not in default.experiment("blocks-perm", MODULAR_05)  # the config default: the paper's 1M steps
+    assert "run" not in default.experiment("blocks-perm", default.plan.paper_method)  # the config default: the paper's 1M steps
     assert default.stage_items("train") == [f"blocks-perm__{m} seeds=0,1,2 steps=1000000" for m in ("modular-lam0.5", "agg")]
 
     bandit = Reproduction(narrow(plan_for("bandit"), ["bandit-s2-hand", "bandit-user-study"], ["agg"]), tmp_path)
@@ -98,7 +99,7 @@ def test_egos_train_for_the_papers_budget_unless_train_steps_sets_another(tmp_pa
 
     short = Reproduction(narrow(plan_for("bandit", train_steps=500), ["bandit-s2-hand", "bandit-user-study"], ["agg"]), tmp_path)
     assert all(short.experiment(p, m)["run"]["timesteps"] == 500 for p, m in short.trained())  # over the population override too
-    assert short.experiment("bandit-user-study", MODULAR_05)["ppo"] == {"rollout_per_partner": 16}  # the rest of it kept
+    assert short.experiment("bandit-user-study", short.plan.paper_method)["ppo"] == {"rollout_per_partner": 16}  # the rest of it kept
 
     # A folder trained with one budget is not done for another: the train stage runs again.
     calls: list[str] = []

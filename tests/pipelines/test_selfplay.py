@@ -13,21 +13,24 @@ import pandas as pd
 import pytest
 import yaml
 
-from rllib_conv import config, partners
-from rllib_conv.config import ExperimentConfig, SelfPlayConfig
+from rllib_conv import partners
+from rllib_conv.common import config_files
 from rllib_conv.envs.bandit import good_arms, paper_prizes
 from rllib_conv.modules import partner_id
 from rllib_conv.partners.trained import TrainedPolicyPartner
-from rllib_conv.pipelines.algorithm import build_ppo_config, resolve
 from rllib_conv.pipelines.crossplay import crossplay, write_crossplay
-from rllib_conv.pipelines.evaluate import bandit_states
 from rllib_conv.pipelines.selfplay import train_population
+from rllib_conv.pipelines.selfplay_config import SelfPlayConfig
+from rllib_conv.training.algorithm import build_ppo_config
+from rllib_conv.training.ego_setup import resolve
+from rllib_conv.training.experiment import ExperimentConfig
+from rllib_conv.training.marginals import bandit_states
 
 OBS, MASK = bandit_states({"symmetric": 2})
 
 
 def selfplay_raw(**overrides) -> dict:
-    raw = config.load("tune_configs/selfplay_bandit.yaml", ["train_pairs=2", "test_pairs=1", "run.timesteps=12000"], schema=SelfPlayConfig)
+    raw = config_files.load("tune_configs/selfplay_bandit.yaml", ["train_pairs=2", "test_pairs=1", "run.timesteps=12000"], schema=SelfPlayConfig)
     raw.update(overrides)
     return raw
 
@@ -64,7 +67,7 @@ def test_population_folder_is_self_contained_and_loads_in_a_fresh_process(traine
         f"""
         import json
         from rllib_conv import partners
-        from rllib_conv.pipelines.evaluate import bandit_states
+        from rllib_conv.training.marginals import bandit_states
         obs, mask = bandit_states({{"symmetric": 2}})
         pop = partners.get({str(moved)!r})
         print("RESULT" + json.dumps({{e.name: e.build().probs(obs, mask).tolist() for e in pop.partners}}))
@@ -146,6 +149,6 @@ def test_crossplay_refuses_different_games() -> None:
 def test_selfplay_configs_are_valid() -> None:
     for name in ("selfplay_bandit", "selfplay_blocks", "selfplay_hanabi"):
         path = f"tune_configs/{name}.yaml"
-        cfg = config.validate(config.load(path, schema=SelfPlayConfig), path, schema=SelfPlayConfig)[0]
+        cfg = config_files.validate(config_files.load(path, schema=SelfPlayConfig), path, schema=SelfPlayConfig)[0]
         assert cfg.gate.episodes == 1000
     assert yaml.safe_load(open("tune_configs/selfplay_blocks.yaml"))["gate"]["score"] == 19.0

@@ -9,13 +9,16 @@ import pandas as pd
 import torch
 import yaml
 
-from rllib_conv import config, partners
+from rllib_conv import partners
+from rllib_conv.common.run_folders import CONFIG_FILE, EVAL_FILE
 from rllib_conv.envs.oracles import oracle_for
 from rllib_conv.learners.marginal_learner import head_size
 from rllib_conv.modules.multi import ego_id
-from rllib_conv.pipelines.checkpoints import last_checkpoint
-from rllib_conv.pipelines.evaluate import bandit_states, load_module, task_probs
-from rllib_conv.pipelines.train import CONFIG_FILE, EVAL_FILE, run
+from rllib_conv.pipelines.train import run
+from rllib_conv.training import experiment
+from rllib_conv.training.checkpoints import last_checkpoint
+from rllib_conv.training.evaluate import load_module, task_probs
+from rllib_conv.training.marginals import bandit_states
 
 PARTNERS = [f"hand-train-{k}" for k in range(4)]
 
@@ -39,7 +42,7 @@ def test_modular_ego_learns_conventions_and_marginals_within_paper_budget(bandit
 
 
 def test_one_progress_line_per_iteration(ray_session, tmp_path, capfd) -> None:
-    raw = config.load("tune_configs/bandit_modular.yaml", ["run.timesteps=512", "name=progress", "model.hidden=8"])
+    raw = experiment.load("tune_configs/bandit_modular.yaml", ["run.timesteps=512", "name=progress", "model.hidden=8"])
     run(raw, storage=tmp_path)
     lines = [ln for ln in capfd.readouterr().out.splitlines() if "] iter" in ln]
     assert [ln.split("iter")[1].split()[0] for ln in lines] == ["1", "2"]
@@ -60,7 +63,7 @@ def test_grid_over_lam_from_yaml(ray_session, tmp_path) -> None:
             }
         )
     )
-    results = run(config.load(path), storage=tmp_path / "runs")
+    results = run(experiment.load(path), storage=tmp_path / "runs")
     assert len(results) == 2 and not results.errors
     lams = sorted(yaml.safe_load(open(f"{r.path}/{CONFIG_FILE}"))["lam"] for r in results)
     assert lams == [0.0, 0.5]
@@ -82,7 +85,7 @@ def test_head_penalty_hands_the_rules_to_the_task_module_and_keeps_the_conventio
         return head_size(outputs[:, rule]).item(), head_size(outputs[:, ~rule]).item(), task_probs(module, obs, mask)
 
     plain_rule, _, _ = head_sizes(bandit_egos["bandit-s2-hand"].path)
-    raw = config.load("tune_configs/bandit_modular.yaml", ["name=penalised", "head_l2=0.05"])
+    raw = experiment.load("tune_configs/bandit_modular.yaml", ["name=penalised", "head_l2=0.05"])
     result = run(raw, storage=tmp_path)[0]
     rule_size, convention_size, task = head_sizes(result.path)
     assert plain_rule > 1.0  # without the penalty the heads also push the rule arms

@@ -16,10 +16,11 @@ def study_ego(ray_session, tmp_path_factory) -> Path:
     Far from converged (its task module is near uniform): enough to be loaded, served and
     played with; the adaptation claims are tested on the agent with known priors.
     """
-    from rllib_conv import config
+    from rllib_conv.common import config_files
     from rllib_conv.pipelines.train import run
+    from rllib_conv.training.experiment import ExperimentConfig
 
-    raw = config.from_dict(
+    raw = config_files.from_dict(
         {
             "name": "play-ego",
             "population": "bandit-user-study",
@@ -27,7 +28,8 @@ def study_ego(ray_session, tmp_path_factory) -> Path:
             "lam": 0.5,
             "run": {"timesteps": 1536, "eval_episodes": 20},
             "ppo": {"num_epochs": 5},
-        }
+        },
+        schema=ExperimentConfig,
     )
     results = run(raw, storage=tmp_path_factory.mktemp("play-egos"))
     assert not results.errors

@@ -7,7 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from rllib_conv.envs.bandit import USER_STUDY_GOOD_ARMS, user_study_prizes
+from rllib_conv.common.user_study_table import USER_STUDY_GOOD_ARMS
+from rllib_conv.envs.bandit import user_study_prizes
 from rllib_conv.envs.blocks import GOALS, PASS, RED, encode_observation
 from rllib_conv.play.agent import (
     AdaptiveAgent,

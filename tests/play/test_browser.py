@@ -11,9 +11,10 @@ from pathlib import Path
 import pytest
 from playwright.sync_api import Page, expect
 
-from rllib_conv.partners.user_study import load_user_study
+from rllib_conv.common.user_study_table import load_user_study
+from rllib_conv.play.lobby import Lobby
 from rllib_conv.play.recording import SessionRecorder
-from rllib_conv.play.rooms import CELL_NAMES, Lobby
+from rllib_conv.play.room import CELL_NAMES
 from rllib_conv.play.server import PlayServer, build_lobby
 
 SCHEDULE = [(task, c, t) for task in ("train", "test") for c in "ABC" for t in range(1, 6)]

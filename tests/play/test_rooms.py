@@ -8,13 +8,15 @@ from pathlib import Path
 
 import pytest
 
-from rllib_conv.envs.bandit import USER_STUDY_GOOD_ARMS, user_study_prizes
+from rllib_conv.common.user_study_table import DEFAULT_PATH, USER_STUDY_GOOD_ARMS, load_user_study
+from rllib_conv.envs.bandit import user_study_prizes
 from rllib_conv.partners.blocks import PermutationPartner
-from rllib_conv.partners.user_study import DEFAULT_PATH, load_user_study
 from rllib_conv.play import recording
 from rllib_conv.play.agent import bandit_oracle_prior, uniform_prior
+from rllib_conv.play.bandit_room import BanditRoom
+from rllib_conv.play.lobby import Lobby
 from rllib_conv.play.recording import BLOCKS_COLUMNS, CsvLog, SessionRecorder
-from rllib_conv.play.rooms import AgentSettings, BanditRoom, Lobby, PlayError
+from rllib_conv.play.room import AgentSettings, PlayError
 
 PRIORS = {"train": bandit_oracle_prior(user_study_prizes(False)), "test": bandit_oracle_prior(user_study_prizes(True))}
 SCHEDULE = [(task, c, t) for task in ("train", "test") for c in "ABC" for t in range(1, 6)]

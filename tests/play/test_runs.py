@@ -16,7 +16,7 @@ import pytest
 import yaml
 
 from rllib_conv import partners
-from rllib_conv.play.agent import EgoRun, load_run, require_user_study
+from rllib_conv.play.ego_run import EgoRun, load_run, require_user_study
 from rllib_conv.play.server import build_lobby
 
 

@@ -13,8 +13,8 @@ from typing import Any
 import pytest
 
 from rllib_conv.cli import build_parser, main
+from rllib_conv.play.lobby import Lobby
 from rllib_conv.play.recording import SessionRecorder
-from rllib_conv.play.rooms import Lobby
 from rllib_conv.play.server import PlayServer, build_lobby
 
 

@@ -10,7 +10,9 @@ import pytest
 
 from rllib_conv import partners
 from rllib_conv.cli import main
-from rllib_conv.pipelines.checkpoints import MANIFEST, RL_MODULE_DIR, checkpoints, last_checkpoint, seal, verify
+from rllib_conv.common.run_folders import RL_MODULE_DIR, checkpoints
+from rllib_conv.common.sealed import MANIFEST, seal, verify
+from rllib_conv.training.checkpoints import last_checkpoint
 from tests.helpers import digest
 
 

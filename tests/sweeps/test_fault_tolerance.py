@@ -8,9 +8,10 @@ from pathlib import Path
 import pytest
 
 from rllib_conv import envs, partners
-from rllib_conv.config import ExperimentConfig
 from rllib_conv.envs.bandit import CollaborativeBanditEnv
-from rllib_conv.pipelines.algorithm import build_ppo_config, setup_for
+from rllib_conv.training.algorithm import build_ppo_config
+from rllib_conv.training.ego_setup import setup_for
+from rllib_conv.training.experiment import ExperimentConfig
 
 
 def _flaky_factory(marker: Path, crash_at: int):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from types import SimpleNamespace
 
-from rllib_conv.pipelines.tuning import ProgressTable
+from rllib_conv.training.callbacks import ProgressTable
 
 
 def _trial(trial_id, status, params, result):

@@ -17,7 +17,8 @@ import pandas as pd
 import torch
 import yaml
 
-from rllib_conv.pipelines.checkpoints import RL_MODULE_DIR, checkpoints, last_checkpoint
+from rllib_conv.common.run_folders import RL_MODULE_DIR, checkpoints
+from rllib_conv.training.checkpoints import last_checkpoint
 
 SWEEP = {
     "name": "sweep",

@@ -1,77 +1,28 @@
-"""Turn an `ExperimentConfig` into an RLlib `PPOConfig` for the modular ego and its partners."""
+"""Turn an `EgoSetup` into an RLlib `PPOConfig` for the modular ego and its partners."""
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from typing import Any
 
-import torch
 from ray.rllib.algorithms.ppo import PPOConfig
-from ray.rllib.core import COMPONENT_LEARNER, COMPONENT_RL_MODULE
 from ray.rllib.core.rl_module.multi_rl_module import MultiRLModuleSpec
 from ray.rllib.core.rl_module.rl_module import RLModuleSpec
 
-from rllib_conv import envs, partners
-from rllib_conv.config import SINGLE_HEAD_METHODS, ExperimentConfig, PPOSettings, RunSettings
-from rllib_conv.envs.rllib_adapter import (
-    PettingZooMultiAgentEnv,
-    RLlibGame,
-    game_env_config,
-)
+from rllib_conv import envs
+from rllib_conv.common.methods import method
+from rllib_conv.envs.rllib_adapter import PettingZooMultiAgentEnv, RLlibGame, game_env_config
 from rllib_conv.learners.marginal_learner import MarginalPPOLearner
 from rllib_conv.modules import (
-    AGG_HEAD_ID,
     TASK_ID,
     ConventionMultiRLModule,
     FixedPartnerModule,
     PartnerHeadModule,
     PartnerMapping,
     TaskModule,
-    ego_id,
     partner_id,
 )
-from rllib_conv.partners.population import PartnerEntry, Population
-
-
-@dataclass
-class EgoSetup:
-    """Everything derived from an experiment: resolved config, population, seats, module IDs."""
-
-    exp: ExperimentConfig
-    population: Population
-    env_config: dict
-    ego_agent: str
-    partner_agent: str
-    train: list[PartnerEntry]
-
-    @property
-    def head_ids(self) -> list[str]:
-        """The ego heads being trained (one per training partner; one for BaselineAgg)."""
-        return [AGG_HEAD_ID] if self.exp.method in SINGLE_HEAD_METHODS else [ego_id(e.name) for e in self.train]
-
-
-def resolve(exp: ExperimentConfig) -> EgoSetup:
-    """Load the population, check it fits the game, and fill in the game's defaults."""
-    pop = partners.get(exp.population)
-    return setup_for(exp, pop, pop.entries("train"))
-
-
-def setup_for(exp: ExperimentConfig, pop: Population, train: list[PartnerEntry]) -> EgoSetup:
-    """The setup training the ego of `exp` against the partners `train` of `pop`."""
-    if exp.env is not None and exp.env != pop.env:
-        raise ValueError(f"env {exp.env!r} does not match population {pop.name!r}, which is for {pop.env!r}")
-    env_config = {**pop.env_config, **exp.env_config}
-    probe = envs.make(pop.env, **env_config)
-    if len(probe.possible_agents) != 2 or pop.partner_agent not in probe.possible_agents:
-        raise ValueError(
-            f"population {pop.name!r}: partner_agent {pop.partner_agent!r} must be one of the game's two agents "
-            f"{probe.possible_agents}"
-        )
-    if not train:
-        raise ValueError(f"population {pop.name!r} has no partners to train with")
-    ego_agent = next(a for a in probe.possible_agents if a != pop.partner_agent)
-    return EgoSetup(exp.resolve(pop.env), pop, env_config, ego_agent, pop.partner_agent, train)
+from rllib_conv.training.ego_setup import EgoSetup
+from rllib_conv.training.settings import PPOSettings, RunSettings
 
 
 def module_specs(setup: EgoSetup, load: dict[str, str] | None = None) -> dict[str, RLModuleSpec]:
@@ -84,10 +35,10 @@ def module_specs(setup: EgoSetup, load: dict[str, str] | None = None) -> dict[st
     ego_obs, ego_act = env.observation_spaces[setup.ego_agent], env.action_spaces[setup.ego_agent]
     sizes = {"hidden": exp.model.hidden, "z_dim": exp.model.z_dim}
     task_config = dict(sizes)
-    if exp.method == "oracle":
+    if method(exp.method).task_logits == "oracle":
         task_config["oracle"] = {"env": setup.population.env, "env_config": setup.env_config}
     specs = {TASK_ID: RLModuleSpec(module_class=TaskModule, observation_space=ego_obs, action_space=ego_act, model_config=task_config)}
-    head_config = {**sizes, "use_task_logits": exp.method != "no_task_logits"}
+    head_config = {**sizes, "use_task_logits": method(exp.method).task_logits != "unused"}
     for mid in setup.head_ids:
         specs[mid] = RLModuleSpec(module_class=PartnerHeadModule, observation_space=ego_obs, action_space=ego_act, model_config=head_config)
     p_obs, p_act = env.observation_spaces[setup.partner_agent], env.action_spaces[setup.partner_agent]
@@ -154,7 +105,7 @@ def build_ppo_config(setup: EgoSetup, load: dict[str, str] | None = None) -> PPO
     exp, ppo = setup.exp, setup.exp.ppo
     specs = module_specs(setup, load)
     mapping = PartnerMapping(
-        [e.name for e in setup.train], setup.ego_agent, setup.partner_agent, shared_head=exp.method in SINGLE_HEAD_METHODS
+        [e.name for e in setup.train], setup.ego_agent, setup.partner_agent, shared_head=method(exp.method).single_head
     )
     return (
         base_ppo_config(setup.population.env, setup.env_config, ppo, exp.run, exp.seed, ppo.rollout_per_partner * len(setup.train))
@@ -166,39 +117,5 @@ def build_ppo_config(setup: EgoSetup, load: dict[str, str] | None = None) -> PPO
             policies_to_train=[TASK_ID, *setup.head_ids],
         )
         .rl_module(rl_module_spec=MultiRLModuleSpec(multi_rl_module_class=ConventionMultiRLModule, rl_module_specs=specs))
-        .learners(
-            learner_class=MarginalPPOLearner,
-            learner_config_dict={
-                "lam": exp.lam,
-                "freeze": list(exp.freeze),
-                "adam_eps": ppo.adam_eps,
-                "z_lr_scale": exp.z_lr_scale,
-                "head_l2": exp.head_l2,
-            },
-        )
+        .learners(learner_class=MarginalPPOLearner, learner_config_dict=exp.learner_settings().config_dict())
     )
-
-
-def push_learner_weights(algo: Any) -> None:
-    """Send the learner's module weights to every env runner, local and remote (as PPO does after an update)."""
-    state = algo.learner_group.get_state(components=f"{COMPONENT_LEARNER}/{COMPONENT_RL_MODULE}", inference_only=True)
-    # No weights sequence number: env runners skip states whose number they have seen, and
-    # weights changed outside an update (MAML's outer step, a reset layer) keep the old one.
-    module_state = {COMPONENT_RL_MODULE: state[COMPONENT_LEARNER][COMPONENT_RL_MODULE]}
-    algo.env_runner_group.sync_env_runner_states(config=algo.config, rl_module_state=module_state)
-
-
-Weights = dict[str, dict[str, torch.Tensor]]  # module ID -> state dict
-
-
-def snapshot(module: Any, module_ids: tuple[str, ...]) -> Weights:
-    """A detached copy of the weights of `module_ids` in a MultiRLModule."""
-    return {mid: {k: v.detach().clone() for k, v in module[mid].state_dict().items()} for mid in module_ids}
-
-
-def load_weights(module: Any, weights: Weights) -> None:
-    """Write `weights` into the MultiRLModule's sub-modules in place (optimizers keep their tensors)."""
-    with torch.no_grad():
-        for mid, params in weights.items():
-            for k, v in module[mid].state_dict().items():
-                v.copy_(params[k])

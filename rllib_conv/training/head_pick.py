@@ -15,7 +15,7 @@ first) but is sharp, and PPO moves it away from the wrong part of its convention
 It pays where new partners share whole conventions with training ones (blocks self-play
 partners) and costs where they do not (blocks hand-designed partners), unless the heads
 were trained with the head penalty (`head_l2`), which keeps them small enough to move
-(the README's benchmark table has the numbers).
+(`docs/benchmarks.md` has the numbers).
 """
 
 from __future__ import annotations

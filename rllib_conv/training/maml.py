@@ -11,7 +11,7 @@ from __future__ import annotations
 from typing import Any
 
 from rllib_conv.modules.multi import AGG_HEAD_ID, TASK_ID
-from rllib_conv.pipelines.algorithm import Weights, load_weights, push_learner_weights, snapshot
+from rllib_conv.training.weights import Weights, load_weights, push_learner_weights, snapshot
 
 META_MODULES = (TASK_ID, AGG_HEAD_ID)
 

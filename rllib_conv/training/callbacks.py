@@ -1,25 +1,16 @@
-"""The one training loop: every pipeline runs its trials through `fit`, a Ray Tune experiment.
-
-`fit` starts a new experiment or, when the experiment folder already exists, continues it
-with `Tuner.restore`: finished trials are kept, interrupted ones continue from their last
-checkpoint, errored ones are retried. Running the same command again therefore resumes.
-"""
+"""Tune callbacks of every pipeline: a progress line per result, a live table of trials, result files kept free of repeats."""
 
 from __future__ import annotations
 
 import json
 import math
-import os
 import time
 from pathlib import Path
 from typing import Any
 
-import ray
-import yaml
-from ray import tune
 from ray.tune import Callback
-from ray.tune.execution.placement_groups import PlacementGroupFactory
 
+from rllib_conv.common.run_folders import PROGRESS_FILES
 from rllib_conv.learners.marginal_learner import HEAD_L2_KEY, MARGINAL_REG_KEY
 
 
@@ -107,9 +98,6 @@ class ProgressTable(Callback):
 PROGRESS = {"lines": ProgressLine, "table": ProgressTable}
 
 
-RESULT_FILES = ("progress.csv", "result.json")
-
-
 class TrimRerunResults(Callback):
     """Keep each trial's result files free of repeated iterations after a resume.
 
@@ -125,7 +113,7 @@ class TrimRerunResults(Callback):
     @staticmethod
     def _files(trial: Any) -> list[Path]:
         folders = {Path(p) for p in (getattr(trial, "local_path", None), getattr(trial, "path", None)) if p}
-        return [folder / name for folder in folders for name in RESULT_FILES if (folder / name).is_file()]
+        return [folder / name for folder in folders for name in PROGRESS_FILES if (folder / name).is_file()]
 
     @staticmethod
     def _logged(path: Path) -> list[int]:
@@ -155,94 +143,3 @@ class TrimRerunResults(Callback):
             for path in self._files(trial):
                 self._trim(path, before=current)
         self._last[trial.trial_id] = current
-
-
-def init_ray(address: str | None = None) -> None:
-    """Connect to `address` (or $RAY_ADDRESS); without one start a local embedded Ray."""
-    if ray.is_initialized():
-        return
-    # Our trials finish quickly; Tune's warning about slow experiment-state syncs is noise here.
-    os.environ.setdefault("TUNE_WARN_EXCESSIVE_EXPERIMENT_CHECKPOINT_SYNC_THRESHOLD_S", "0")
-    address = address or os.environ.get("RAY_ADDRESS")
-    env = {"env_vars": {"OMP_NUM_THREADS": "1"}}
-    if address:
-        ray.init(address=address, runtime_env=env, log_to_driver=False)
-    else:
-        ray.init(include_dashboard=False, runtime_env=env, log_to_driver=False)
-
-
-def trial_resources(run: dict[str, Any] | None) -> PlacementGroupFactory:
-    """What a training trial asks Ray for: a CPU for itself (learner and local env runner),
-    one per remote env runner, and the custom resources in `run.resources` (which pin it to
-    the nodes that offer them)."""
-    run = run or {}
-    runners = int(run.get("num_env_runners", 0) or 0)
-    return PlacementGroupFactory([{"CPU": 1, **run.get("resources", {})}] + [{"CPU": 1}] * runners)
-
-
-SPEC_FILE = "experiment.yaml"
-
-
-def check_spec(folder: Path, spec: dict[str, Any]) -> None:
-    """Record `spec` in `folder`, or raise ValueError if the folder holds a different experiment."""
-    path = folder / SPEC_FILE
-    if path.is_file():
-        stored = yaml.safe_load(path.read_text())
-        if stored != spec:
-            raise ValueError(
-                f"{str(folder)!r} already holds a different experiment (see its {SPEC_FILE}); "
-                "use another name or storage folder, or delete it to start over"
-            )
-        return
-    folder.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(".tmp")
-    tmp.write_text(yaml.safe_dump(spec, sort_keys=False))
-    tmp.replace(path)
-
-
-def fit(
-    trainable: type[tune.Trainable],
-    spec: dict[str, Any],
-    param_space: dict[str, Any],
-    name: str,
-    storage: str | Path,
-    address: str | None = None,
-    checkpoint: tune.CheckpointConfig | None = None,
-    progress: str = "lines",
-    resume: bool = False,
-) -> tune.ResultGrid:
-    """Run the Tune experiment `storage/name` described by `spec` and return its results.
-
-    If that folder already holds the same experiment (an earlier, possibly interrupted run),
-    it is continued instead of started over; a different experiment there is an error, and
-    so is `resume=True` with nothing to continue. `progress`: "lines" (one per result) or
-    "table" (a table of all trials, see `ProgressTable`).
-    """
-    if progress not in PROGRESS:
-        raise ValueError(f"progress must be one of {sorted(PROGRESS)}, got {progress!r}")
-    path = Path(storage).resolve() / name
-    restorable = tune.Tuner.can_restore(str(path))
-    if resume and not restorable:
-        raise ValueError(f"nothing to resume: {str(path)!r} holds no Tune experiment (run without --resume to start it)")
-    check_spec(path, spec)
-    init_ray(address)
-    callbacks = [TrimRerunResults(), PROGRESS[progress]()]
-    if restorable:
-        tuner = tune.Tuner.restore(str(path), trainable=trainable, param_space=param_space, resume_unfinished=True, resume_errored=True)
-        # tuner.pkl holds the first run's callbacks; this run's progress choice (and fixes) win.
-        tuner._local_tuner.get_run_config().callbacks = callbacks
-    else:
-        tuner = tune.Tuner(
-            trainable,
-            param_space=param_space,
-            run_config=tune.RunConfig(
-                name=name,
-                storage_path=str(path.parent),
-                callbacks=callbacks,
-                verbose=0,
-                # Our config.yaml / eval.json are trial artifacts: persist them with the checkpoints.
-                sync_config=tune.SyncConfig(sync_artifacts=True),
-                checkpoint_config=checkpoint or tune.CheckpointConfig(checkpoint_at_end=True),
-            ),
-        )
-    return tuner.fit()

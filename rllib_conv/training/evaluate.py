@@ -1,4 +1,4 @@
-"""Evaluate a trained ego: per-partner returns (exact for one-step games) and marginal distances."""
+"""Evaluate a trained ego: its action probabilities, its return with a partner (exact for one-step games), loading it."""
 
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ import torch
 from ray.rllib.core.rl_module.multi_rl_module import MultiRLModule
 
 from rllib_conv import envs
+from rllib_conv.common.run_folders import RL_MODULE_DIR
 from rllib_conv.envs.bandit import CollaborativeBanditEnv
-from rllib_conv.envs.oracles import canonical_actions, oracle_for
 from rllib_conv.modules.multi import ConventionMultiRLModule
 from rllib_conv.partners.base import Partner
 from rllib_conv.partners.play import play_episodes
@@ -81,55 +81,9 @@ def ego_return(
     return out
 
 
-def bandit_states(env_config: dict[str, Any]) -> tuple[np.ndarray, np.ndarray]:
-    """Every bandit state (one-hot contexts) with all-legal masks."""
-    env = CollaborativeBanditEnv(**env_config)
-    return np.eye(env.num_contexts, dtype=np.float32), np.ones((env.num_contexts, env.num_arms), dtype=np.int8)
-
-
-def merge_actions(values: np.ndarray, canon: np.ndarray) -> np.ndarray:
-    """Sum `values` [B, A] onto each row's canonical actions (`canon` [B, A] of action indices)."""
-    out = np.zeros_like(values, dtype=np.float64)
-    rows = np.repeat(np.arange(len(values)), values.shape[1])
-    np.add.at(out, (rows, canon.ravel()), values.ravel())
-    return out
-
-
-def optimal_actions(env_name: str, env_config: dict[str, Any], obs: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """[B, A] bool: which canonical actions are optimal in each state (the game's oracle, legal actions only)."""
-    canon = canonical_actions(env_name, obs, mask.shape[1])
-    return merge_actions(oracle_for(env_name, env_config)(obs) * mask, canon) > 0
-
-
-def marginal_distances(
-    module: ConventionMultiRLModule,
-    env_name: str,
-    env_config: dict[str, Any],
-    obs: np.ndarray,
-    mask: np.ndarray,
-    head_id: str | None = None,
-) -> dict[str, float]:
-    """L1 distance between the task module's distribution and the true marginals on `obs`.
-
-    With `head_id` the policy of that head is compared instead (single-network methods,
-    whose whole policy is their estimate of the marginals). `paper`: averaged over states
-    with more than one optimal action and at least one non-optimal legal action (the
-    paper's marginals figure); `all`: over every state.
-    """
-    canon = canonical_actions(env_name, obs, mask.shape[1])
-    optimal = optimal_actions(env_name, env_config, obs, mask)
-    truth = optimal / optimal.sum(axis=1, keepdims=True)
-    probs = task_probs(module, obs, mask) if head_id is None else head_probs(module, head_id, obs, mask)
-    dist = np.abs(merge_actions(probs, canon) - truth).sum(axis=1)
-    n_opt = optimal.sum(axis=1)
-    distinct = (merge_actions(mask.astype(float), canon) > 0).sum(axis=1)
-    ambiguous = (n_opt > 1) & (n_opt < distinct)
-    return {"paper": float(dist[ambiguous].mean()) if ambiguous.any() else float("nan"), "all": float(dist.mean())}
-
-
 def load_module(checkpoint: str | Path) -> ConventionMultiRLModule:
     """Load the ego's MultiRLModule (task module, heads, partners) from an algorithm checkpoint."""
-    path = Path(checkpoint) / "learner_group" / "learner" / "rl_module"
+    path = Path(checkpoint) / RL_MODULE_DIR
     if not path.is_dir():
         raise ValueError(f"{str(checkpoint)!r} is not an algorithm checkpoint (no {path.relative_to(checkpoint)})")
     return MultiRLModule.from_checkpoint(path)

@@ -1,0 +1,55 @@
+"""`build_report`: the report's entry point; it loads the data once and writes the sections in order."""
+
+from __future__ import annotations
+
+import datetime as _dt
+from pathlib import Path
+from typing import Iterable
+
+from analysis.report.context import Context
+from analysis.report.sections.adaptation import adaptation_section
+from analysis.report.sections.differences import differences_section
+from analysis.report.sections.marginals import marginals_section
+from analysis.report.sections.selfplay import selfplay_section
+from analysis.report.sections.status import status_section
+from analysis.report.sections.training import training_section
+from analysis.report.sections.user_study import user_study_section
+from analysis.report.sections.zeroshot import zeroshot_section
+
+
+def build_report(root: str | Path, out: str | Path | None = None, user_study: Iterable[str | Path] | None = None) -> Path:
+    """Build `report.md` and its figures for the reproduction under `root`; return the report's path.
+
+    `root` is a `reproduce --out` folder (one sub-folder per game) or one game folder;
+    `out` defaults to `<root>/report`. `user_study` names recorded session CSVs (files
+    or folders) to analyse beside the paper's table; by default `<root>/user_study/` if
+    it exists. Only files are read; nothing is trained or evaluated.
+    """
+    root, out = Path(root), Path(out) if out is not None else Path(root) / "report"
+    if not root.is_dir():
+        raise ValueError(f"root {str(root)!r} is not a folder (expected a `rllib-conv reproduce --out` folder or one game folder)")
+    out.mkdir(parents=True, exist_ok=True)
+    ctx = Context(root, out, user_study)
+    # Sections that compare numbers run first, so the summary at the top can list their differences.
+    body = [
+        status_section(ctx),
+        adaptation_section(ctx),
+        zeroshot_section(ctx),
+        marginals_section(ctx),
+        user_study_section(ctx),
+        training_section(ctx),
+        selfplay_section(ctx),
+    ]
+    head = [
+        "# Reproduction report: paper vs ours",
+        "",
+        f"Built by `python -m analysis {root}` on {_dt.datetime.now().strftime('%Y-%m-%d %H:%M')} from the files under `{root.resolve()}`. "
+        "Paper: Shih et al., ICLR 2021 (numbers read from its LaTeX source; see `analysis/paper.py` for each source). "
+        "Intervals are 95% Student-t intervals of a mean over seeds (training, marginals) or over (seed, test partner) "
+        "curves (adaptation, zero-shot); a paper number counts as matching when it lies inside ours, widened by its rounding.",
+        "",
+    ]
+    text = "\n".join(head + [body[0], "", differences_section(ctx), ""] + [b + "\n" for b in body[1:]])
+    path = out / "report.md"
+    path.write_text(text)
+    return path

@@ -1,0 +1,92 @@
+"""`Context`: everything a report is built from (the loaded frames) and what its sections accumulate; the method groups the paper's claims are about."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Iterable
+
+import numpy as np
+import pandas as pd
+
+from analysis import figures, loaders
+from analysis.report.formatting import digits
+from analysis.report.verdicts import ClaimCheck, Comparison
+from analysis.summaries import summarise
+from rllib_conv.common import methods
+
+# Methods the paper calls "our method with regularisation" and the baselines it beats.
+REGULARISED = ("modular-lam0.3", "modular-lam0.5", "lowz-lam0.5")
+BASELINES = ("agg", "no_task_logits", "maml")
+
+# Methods of ours that the paper does not have: shown in the tables, left out of its claims.
+EXTENSIONS = ("modular-lam0.5-hl0.01", "modular-lam0.5-pick", "modular-lam0.5-hl0.01-pick")
+
+PAPER_SEEDS = 3  # this project's default seed count for a full reproduction
+CONVERGED = 0.9  # share of the game's maximum score below which a trained ego counts as under-trained
+
+
+class Context:
+    """Everything loaded from ROOT plus what the report accumulates while its sections are written."""
+
+    def __init__(self, root: Path, out: Path, user_study: Iterable[str | Path] | None) -> None:
+        self.root, self.out, self.figdir = root, out, out / "figures"
+        self.games = loaders.game_dirs(root)
+        self.plans = {loaders.game_of(g): loaders.read_plan(g) for g in self.games}
+        self.stages = loaders.load_stage_times(root)
+        self.training = loaders.load_training(root)
+        self.evals = loaders.load_evals(root)
+        self.adaptation = loaders.load_adaptation(root)
+        self.zeroshot = loaders.load_zeroshot(root)
+        self.marginals = loaders.load_marginals(root)
+        self.selfplay = loaders.load_selfplay_reports(root)
+        self.crossplay = loaders.load_crossplay(root)
+        live = list(user_study) if user_study is not None else ([root / "user_study"] if (root / "user_study").is_dir() else [])
+        self.live_study_paths = live
+        self.comparisons: list[Comparison] = []
+        self.claims: list[ClaimCheck] = []
+        self.notes: list[str] = []  # absent data, said in the summary
+        self.train_summary = self._train_summary()
+
+    # -- helpers --
+    def game_of_population(self, population: str) -> str | None:
+        """The game a population was run on, from whichever table mentions it (None if none does)."""
+        for frame in (self.training, self.adaptation, self.zeroshot, self.marginals, self.selfplay):
+            if not frame.empty and population in set(frame["population"]):
+                return str(frame.loc[frame["population"] == population, "game"].iloc[0])
+        return None
+
+    def quick(self, game: str | None) -> bool:
+        """Whether `game` was run with the quick (tiny) plan."""
+        return bool(self.plans.get(game or "", {}).get("quick", False))
+
+    def save(self, fig: object, name: str) -> str:
+        """Save `fig` as figures/<name>.png and .pdf; return the markdown that shows it."""
+        figures.save(fig, self.figdir / name)
+        return f"![{name}](figures/{name}.png) ([PDF](figures/{name}.pdf))"
+
+    def _train_summary(self) -> pd.DataFrame:
+        """Per (game, population, label): final return with the training partners over seeds (eval.json; exact where known)."""
+        if self.evals.empty:
+            return pd.DataFrame(columns=["game", "population", "label", "method", "mean", "lo", "hi", "n"])
+        ev = self.evals.copy()
+        ev["value"] = ev["exact_return"].where(ev["exact_return"].notna(), ev["mean_return"]).astype(float)
+        per_trial = ev.groupby(["game", "population", "label", "method", "trial"], as_index=False)["value"].mean()
+        return summarise(per_trial, ["game", "population", "label", "method"], "value")
+
+    def reasons(self, game: str | None, population: str, label: str, n: int) -> list[str]:
+        """Data-derived reasons why a number of (population, label) may differ from the paper's."""
+        out = []
+        if self.quick(game):
+            out.append("quick plan: shortened training and adaptation, one seed, one test partner; not meant to match the paper")
+        seeds = self.plans.get(game or "", {}).get("seeds", [])
+        if seeds and len(seeds) < PAPER_SEEDS and not self.quick(game):
+            out.append(f"only {len(seeds)} seed(s)")
+        row = self.train_summary[(self.train_summary["population"] == population) & (self.train_summary["label"] == label)]
+        top = loaders.MAX_SCORE.get(game or "", float("nan"))
+        # A single network (BaselineAgg, MAML) cannot follow conflicting conventions: a low training return is expected there.
+        single = not row.empty and methods.method(row["method"].iloc[0]).single_head
+        if not single and not row.empty and np.isfinite(top) and row["mean"].iloc[0] < CONVERGED * top:
+            out.append(f"the trained ego is under-trained: {row['mean'].iloc[0]:.{digits(game)}f} of a possible {top:g} with its training partners")
+        if n == 1:
+            out.append("a single run: no interval to judge the difference by")
+        return out

@@ -1,0 +1,29 @@
+"""Section: training the egos (final returns with the training partners, training curves)."""
+
+from __future__ import annotations
+
+from analysis import figures, loaders
+from analysis.paper import label_name, population_name
+from analysis.report.context import Context
+from analysis.report.formatting import digits, fmt_ci, md_table
+
+
+def training_section(ctx: Context) -> str:
+    lines = ["## Training the egos", ""]
+    if ctx.training.empty:
+        lines.append("No training logs (runs/<population>__<label>/*/progress.csv) found.")
+        return "\n".join(lines)
+    lines.append(
+        "Final return of each trained ego with its training partners (eval.json: 200 episodes per partner, the exact expectation on the bandit), "
+        "mean over seeds with 95% interval; the game's maximum in brackets."
+    )
+    lines.append("")
+    rows = []
+    for r in ctx.train_summary.itertuples():
+        top = loaders.MAX_SCORE.get(r.game, float("nan"))
+        rows.append([r.game, population_name(r.population), label_name(r.label), fmt_ci(r.mean, r.lo, r.hi, r.n, digits(r.game)), f"{top:g}"])
+    lines.append(md_table(["game", "population", "method", "final training return", "max"], rows))
+    for game in sorted(ctx.training["game"].unique()):
+        part = ctx.training[ctx.training["game"] == game]
+        lines += ["", f"Training curves, {game} (return_mean against env steps, 95% band over seeds):", "", ctx.save(figures.training_curves(part), f"training_{game}")]
+    return "\n".join(lines)

@@ -1,0 +1,135 @@
+"""The run-folder layout: which file every run, trial, stage and reproduction keeps where.
+
+Writers (the pipelines) and readers (`analysis`, `adapt`, `play`, ...) both name files
+through this module, so the layout is written down once:
+
+    <storage>/<experiment>/            one Tune experiment (`rllib-conv train`, `sweep`, a stage)
+        experiment.yaml                the experiment as given (grids kept)
+        <trial>/config.yaml            a trained ego's resolved config
+        <trial>/eval.json              its final evaluation
+        <trial>/progress.csv           Tune's per-iteration metrics (result.json alike)
+        <trial>/checkpoint_<n>/        sealed RLlib checkpoints; modules under learner_group/learner/rl_module/
+
+    <reproduce out>/<game>/            one game of `rllib-conv reproduce`
+        plan.json                      the plan that ran (game, seeds, quick, train_steps)
+        <stage>.done                   a finished stage: "<seconds> s", then one covered item a line
+        runs/<population>__<label>/    trained egos; runs/adapt-<name>/, zeroshot-<name>/, selfplay-<name>/: Tune folders of later stages
+        populations/<name>/            self-play populations (population.json, selfplay_report.csv)
+        adaptation/<name>.csv          adaptation curves
+        zeroshot/<name>.csv            zero-shot results
+        marginals.csv                  task-module distances to the true marginals
+        superseded/<time>/             outputs a `--redo` moved aside
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+# --- one Tune experiment and its trials -------------------------------------------------
+SPEC_FILE = "experiment.yaml"
+CONFIG_FILE = "config.yaml"
+EVAL_FILE = "eval.json"
+PROGRESS_FILES = ("progress.csv", "result.json")
+CHECKPOINT_PREFIX = "checkpoint_"
+# Inside an RLlib algorithm checkpoint: one folder per module ID.
+RL_MODULE_DIR = Path("learner_group") / "learner" / "rl_module"
+
+# --- populations --------------------------------------------------------------------------
+POPULATION_FILE = "population.json"
+SELFPLAY_REPORT_FILE = "selfplay_report.csv"
+SELFPLAY_TRIAL_FILE = "selfplay.json"  # one self-play pair's outcome, in its trial folder
+
+# --- the Tune experiments of later stages -------------------------------------------------
+ADAPT_PREFIX = "adapt-"  # adaptation `name` runs as the Tune experiment `adapt-<name>`
+ZEROSHOT_PREFIX = "zeroshot-"
+SELFPLAY_PREFIX = "selfplay-"
+STAGE_PREFIXES: tuple[str, ...] = (ADAPT_PREFIX, ZEROSHOT_PREFIX, SELFPLAY_PREFIX)
+
+# --- a reproduction's game folder ---------------------------------------------------------
+PLAN_FILE = "plan.json"
+RUNS_DIR = "runs"
+POPULATIONS_DIR = "populations"
+ADAPTATION_DIR = "adaptation"
+ZEROSHOT_DIR = "zeroshot"
+CROSSPLAY_DIR = "crossplay"
+USER_STUDY_DIR = "user_study"
+SUPERSEDED_DIR = "superseded"
+MARGINALS_FILE = "marginals.csv"
+STAGES: tuple[str, ...] = ("selfplay", "train", "adapt", "zeroshot", "marginals")
+MARKER_SUFFIX = ".done"
+# What marks a folder as one game of a reproduction.
+GAME_MARKERS: tuple[str, ...] = (PLAN_FILE, RUNS_DIR, ADAPTATION_DIR, ZEROSHOT_DIR, MARGINALS_FILE, POPULATIONS_DIR)
+EXPERIMENT_SEPARATOR = "__"
+
+
+def experiment_name(population: str, label: str) -> str:
+    """The name of a reproduction's experiment: `<population>__<label>` (population by its folder name)."""
+    return f"{Path(population).name}{EXPERIMENT_SEPARATOR}{label}"
+
+
+def split_experiment(name: str) -> tuple[str, str]:
+    """Split an experiment or file stem `<population>__<label>` into (population, label); no `__` gives (name, "")."""
+    population, sep, label = name.partition(EXPERIMENT_SEPARATOR)
+    return (population, label) if sep else (name, "")
+
+
+def trial_folders(path: str | Path) -> list[Path]:
+    """The trained-ego trial folders under `path` (itself, or every trial of an experiment folder).
+
+    ValueError when `path` holds neither.
+    """
+    path = Path(path)
+    if (path / CONFIG_FILE).is_file():
+        return [path]
+    trials = sorted(p.parent for p in path.glob(f"*/{CONFIG_FILE}"))
+    if not trials:
+        raise ValueError(f"{str(path)!r} is neither a trained-ego trial folder nor an experiment folder holding some ({CONFIG_FILE} missing)")
+    return trials
+
+
+def read_trial_config(trial: str | Path) -> dict[str, Any]:
+    """A trial's resolved config (its `config.yaml`) as a plain dict."""
+    return yaml.safe_load((Path(trial) / CONFIG_FILE).read_text()) or {}
+
+
+def checkpoints(trial: str | Path) -> list[Path]:
+    """The trial's checkpoint folders, oldest first."""
+    return sorted(Path(trial).glob(f"{CHECKPOINT_PREFIX}*"), key=lambda p: int(p.name.rsplit("_", 1)[1]))
+
+
+def marker_path(game_dir: str | Path, stage: str) -> Path:
+    """Where stage `stage` of a reproduction's game folder leaves its marker."""
+    return Path(game_dir) / f"{stage}{MARKER_SUFFIX}"
+
+
+def read_marker(marker: Path) -> tuple[float, list[str]]:
+    """A stage marker's wall seconds and covered items; (0, []) when there is none.
+
+    Markers from before items were recorded hold only the time, so they cover nothing.
+    """
+    if not marker.is_file():
+        return 0.0, []
+    first, *items = marker.read_text().splitlines()
+    return float(first.split()[0]), [i for i in items if i]
+
+
+def write_marker(marker: Path, seconds: float, items: list[str]) -> None:
+    """Write a stage marker: `<seconds> s` on the first line, then one covered item per line."""
+    marker.write_text("\n".join([f"{seconds:.1f} s", *items]) + "\n")
+
+
+def expected_stages(game: str, quick: bool = False) -> tuple[str, ...]:
+    """The stages `rllib-conv reproduce` runs for `game`, in order.
+
+    Zero-shot needs a new task with the same partners: bandit, and blocks except in the
+    quick plan; Hanabi has neither zero-shot nor marginals (no oracle).
+    """
+    stages = ["selfplay", "train", "adapt"]
+    if game == "bandit" or (game == "blocks" and not quick):
+        stages.append("zeroshot")
+    if game in ("bandit", "blocks"):
+        stages.append("marginals")
+    return tuple(stages)

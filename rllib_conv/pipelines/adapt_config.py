@@ -1,0 +1,51 @@
+"""`AdaptConfig`: the schema of `rllib-conv adapt` (adapting trained egos to new partners)."""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+from pydantic import Field, PositiveInt, model_validator
+
+from rllib_conv.common.config_files import Strict
+from rllib_conv.training.settings import FolderName
+
+
+class AdaptConfig(Strict):
+    """Adapting trained egos to new partners: keep the task module, a fresh head, lam 0.
+
+    `runs` are trained-ego trial folders (or experiment folders: every trial in them).
+    Partners are `split` of `population` (default: the population each run trained on),
+    optionally only `partners`. `method: scratch` adapts a fresh network instead. The ego
+    is evaluated before every update (`every` env steps) up to `steps`, `episodes` episodes
+    each (and exactly on the bandit). Unset values take the paper's per-game adaptation
+    settings (`rllib_conv.envs.defaults.ADAPT_DEFAULTS`); `ppo` overrides the run's PPO settings.
+    `head_init: pick` (not in the paper; egos with one head per partner) first spends
+    `pick_steps` env steps (default `every`) trying the fresh head and every training
+    partner's head on the new partner, and adapts from the best (`rllib_conv.training.head_pick`).
+    """
+
+    name: FolderName = "adapt"
+    runs: list[str]
+    population: str | None = None
+    split: Literal["train", "test"] = "test"
+    partners: list[str] | None = None
+    method: Literal["scratch"] | None = None
+    train_task: bool = True
+    head_init: Literal["fresh", "pick"] = "fresh"
+    pick_steps: PositiveInt | None = None
+    every: PositiveInt | None = None
+    steps: PositiveInt | None = None
+    episodes: PositiveInt = 200
+    ppo: dict[str, Any] = Field(default_factory=dict)
+    seed: int = 0
+    # Set per Tune trial: which run and which partner this trial adapts.
+    run: str | None = None
+    partner: str | None = None
+
+    @model_validator(mode="after")
+    def _consistent(self) -> "AdaptConfig":
+        if self.head_init == "pick" and self.method == "scratch":
+            raise ValueError("head_init 'pick' needs the trained ego's heads; method 'scratch' starts from a fresh network")
+        if self.pick_steps is not None and self.head_init != "pick":
+            raise ValueError(f"pick_steps is set but head_init is {self.head_init!r}; set head_init: pick to use it")
+        return self

@@ -1,0 +1,201 @@
+"""The paper's experiment plans: one YAML per game (`tune_configs/plan_<game>.yaml`), read and checked here.
+
+A plan names what `rllib-conv reproduce` trains, adapts and evaluates for one game: the
+trained-ego variants (`methods`: label -> experiment settings), the adaptation-only variants,
+and, at each scale (`full`, `quick`), the populations with their methods, the self-play
+populations, the zero-shot populations and the overrides. `plan_for` turns a file into a
+`Plan`; `narrow` keeps part of it (`--populations`, `--methods`). See `plan_bandit.yaml`'s
+header for the keys.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from pydantic import Field, PositiveInt, ValidationError, model_validator
+
+from rllib_conv.common import config_files
+from rllib_conv.common.config_files import Strict
+from rllib_conv.common.resources import config_file
+
+GAMES = ("bandit", "blocks", "hanabi")
+
+
+@dataclass
+class TrainedVariant:
+    """One trained-ego variant of a plan: a label for tables and the experiment keys it sets."""
+
+    label: str
+    settings: dict[str, Any]
+
+
+@dataclass
+class AdaptVariant:
+    """Adaptation only: adaptation `settings` applied to the trained egos of `base` (nothing more is trained)."""
+
+    label: str
+    base: TrainedVariant
+    settings: dict[str, Any]
+
+
+@dataclass
+class Plan:
+    """What to run for one game at one scale."""
+
+    game: str
+    seeds: list[int]
+    paper_method: TrainedVariant  # always run: learning from scratch and zero-shot start from its egos
+    populations: dict[str, list[TrainedVariant]]  # built-in population -> methods trained and adapted on it
+    selfplay: list[dict[str, Any]]  # self-play configs (overrides of tune_configs/selfplay_<game>.yaml)
+    selfplay_methods: list[TrainedVariant] = field(default_factory=list)
+    population_overrides: dict[str, dict[str, Any]] = field(default_factory=dict)  # training settings per population
+    zeroshot_populations: list[str] = field(default_factory=list)
+    zeroshot_methods: list[TrainedVariant] = field(default_factory=list)
+    # Run for every population whose methods include their base (the paper method always does).
+    adapt_variants: list[AdaptVariant] = field(default_factory=list)
+    # Populations left out of the marginals: their partners' conventions are not uniform over
+    # optimal actions, so the distance to that uniform distribution measures nothing the regulariser aims at.
+    no_marginals: list[str] = field(default_factory=list)
+    adapt_partners: int | None = None  # test partners per population (None: all)
+    train_overrides: dict[str, Any] = field(default_factory=dict)
+    train_steps: int | None = None  # every ego's training env steps, over any default or override (None: keep them)
+    adapt_overrides: dict[str, Any] = field(default_factory=dict)
+    zeroshot_overrides: dict[str, Any] = field(default_factory=dict)
+    quick: bool = False
+
+
+# --- the file's schema ------------------------------------------------------------------------
+
+
+class AdaptVariantSpec(Strict):
+    """An adaptation-only variant in a plan file: the trained variant it adapts, and its adaptation settings."""
+
+    base: str
+    settings: dict[str, Any] = Field(default_factory=dict)
+
+
+class ScaleSpec(Strict):
+    """One scale of a plan file (`full` or `quick`); method lists name labels of the file's `methods`."""
+
+    populations: dict[str, list[str]] = Field(default_factory=dict)
+    selfplay: list[dict[str, Any]] = Field(default_factory=list)
+    selfplay_methods: list[str] = Field(default_factory=list)
+    zeroshot_populations: list[str] = Field(default_factory=list)
+    zeroshot_methods: list[str] = Field(default_factory=list)
+    adapt_variants: list[str] = Field(default_factory=list)
+    no_marginals: list[str] = Field(default_factory=list)
+    adapt_partners: PositiveInt | None = None
+    population_overrides: dict[str, dict[str, Any]] = Field(default_factory=dict)
+    train_overrides: dict[str, Any] = Field(default_factory=dict)
+    adapt_overrides: dict[str, Any] = Field(default_factory=dict)
+    zeroshot_overrides: dict[str, Any] = Field(default_factory=dict)
+
+
+class PlanFile(Strict):
+    """A plan file: the game, its variants and its two scales; every label it uses must be defined."""
+
+    game: str
+    paper_method: str
+    methods: dict[str, dict[str, Any]]
+    adapt_variants: dict[str, AdaptVariantSpec] = Field(default_factory=dict)
+    full: ScaleSpec
+    quick: ScaleSpec
+
+    @model_validator(mode="after")
+    def _labels_defined(self) -> "PlanFile":
+        def check(labels: list[str], known: dict, where: str) -> None:
+            unknown = [x for x in labels if x not in known]
+            if unknown:
+                raise ValueError(f"{where}: {unknown} not defined; defined: {sorted(known)}")
+
+        check([self.paper_method], self.methods, "paper_method")
+        check([v.base for v in self.adapt_variants.values()], self.methods, "adapt_variants.*.base")
+        for scale in ("full", "quick"):
+            spec: ScaleSpec = getattr(self, scale)
+            for population, labels in spec.populations.items():
+                check(labels, self.methods, f"{scale}.populations.{population}")
+            check(spec.selfplay_methods, self.methods, f"{scale}.selfplay_methods")
+            check(spec.zeroshot_methods, self.methods, f"{scale}.zeroshot_methods")
+            check(spec.adapt_variants, self.adapt_variants, f"{scale}.adapt_variants")
+        return self
+
+
+def shipped_plan(game: str) -> Path:
+    """The plan file of `game` that the package ships (`tune_configs/plan_<game>.yaml`)."""
+    return config_file(f"plan_{game}.yaml")
+
+
+def read_plan_file(path: str | Path) -> PlanFile:
+    """Read and validate a plan YAML; ValueError naming the file and the bad key."""
+    raw = config_files.read_yaml(path, "plan file")
+    try:
+        return PlanFile.model_validate(raw)
+    except ValidationError as exc:
+        raise ValueError(f"plan file {str(path)!r}: {config_files.describe(exc)}") from None
+
+
+def plan_for(game: str, seeds: int = 3, quick: bool = False, train_steps: int | None = None, path: str | Path | None = None) -> Plan:
+    """The plan of `game` from `path` (default: the shipped plan), at the paper's scale or, with `quick`, the small one.
+
+    Egos train for the paper's budget (`rllib_conv.envs.defaults.GAME_DEFAULTS`) unless
+    `train_steps` sets another; the full plan runs seeds 0..`seeds`-1, the quick one seed 0.
+    """
+    if game not in GAMES:
+        raise ValueError(f"game must be one of {', '.join(GAMES)} (or all), got {game!r}")
+    if seeds < 1:
+        raise ValueError(f"--seeds: expected at least 1 seed per method, got {seeds}")
+    if train_steps is not None and train_steps < 1:
+        raise ValueError(f"--train-steps: expected a positive number of env steps, got {train_steps}")
+    source = path if path is not None else shipped_plan(game)
+    spec = read_plan_file(source)
+    if spec.game != game:
+        raise ValueError(f"--plan: {str(source)!r} is a plan for {spec.game!r}, not {game!r}")
+    variants = {label: TrainedVariant(label, settings) for label, settings in spec.methods.items()}
+    adapt_variants = {label: AdaptVariant(label, variants[v.base], v.settings) for label, v in spec.adapt_variants.items()}
+    scale = spec.quick if quick else spec.full
+    return Plan(
+        game=game,
+        seeds=[0] if quick else list(range(seeds)),
+        paper_method=variants[spec.paper_method],
+        populations={population: [variants[x] for x in labels] for population, labels in scale.populations.items()},
+        selfplay=scale.selfplay,
+        selfplay_methods=[variants[x] for x in scale.selfplay_methods],
+        population_overrides=scale.population_overrides,
+        zeroshot_populations=scale.zeroshot_populations,
+        zeroshot_methods=[variants[x] for x in scale.zeroshot_methods],
+        adapt_variants=[adapt_variants[x] for x in scale.adapt_variants],
+        no_marginals=scale.no_marginals,
+        adapt_partners=scale.adapt_partners,
+        train_overrides=scale.train_overrides,
+        train_steps=train_steps,
+        adapt_overrides=scale.adapt_overrides,
+        zeroshot_overrides=scale.zeroshot_overrides,
+        quick=quick,
+    )
+
+
+def narrow(plan: Plan, populations: list[str] | None = None, methods: list[str] | None = None) -> Plan:
+    """Keep only the named populations (built-in, self-play or zero-shot ones) and method labels of `plan`.
+
+    The paper method is always kept: learning from scratch and zero-shot start from its runs.
+    ValueError naming the unknown ones and the choices.
+    """
+    if populations:
+        known = [*plan.populations, *(sp["name"] for sp in plan.selfplay), *plan.zeroshot_populations]
+        unknown = sorted(set(populations) - set(known))
+        if unknown:
+            raise ValueError(f"--populations: {unknown} not in the {plan.game} plan; choose from {sorted(set(known))}")
+        plan.populations = {k: v for k, v in plan.populations.items() if k in populations}
+        plan.selfplay = [sp for sp in plan.selfplay if sp["name"] in populations]
+        plan.zeroshot_populations = [p for p in plan.zeroshot_populations if p in populations]
+    if methods:
+        known = {m.label for ms in [*plan.populations.values(), plan.selfplay_methods] for m in ms}
+        unknown = sorted(set(methods) - known)
+        if unknown:
+            raise ValueError(f"--methods: {unknown} not in the {plan.game} plan; choose from {sorted(known)}")
+        keep = set(methods) | {plan.paper_method.label}
+        plan.populations = {k: [m for m in v if m.label in keep] for k, v in plan.populations.items()}
+        plan.selfplay_methods = [m for m in plan.selfplay_methods if m.label in keep]
+    return plan

@@ -1,0 +1,49 @@
+"""`SelfPlayConfig`: the schema of `rllib-conv partners train` (self-play partner populations)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from pydantic import Field, PositiveInt
+
+from rllib_conv.common.config_files import Strict
+from rllib_conv.training.experiment import ExperimentConfig
+from rllib_conv.training.settings import EnvName, FolderName, ModelSettings, PPOSettings, RunSettings
+
+
+class GateSettings(Strict):
+    """The score a self-play pair must reach to be kept, and how it is checked."""
+
+    score: float
+    episodes: PositiveInt = 1000
+    check_every: PositiveInt = 5
+    check_episodes: PositiveInt = 200
+
+
+class SelfPlayConfig(Strict):
+    """Self-play partner training: `train_pairs + test_pairs` pairs, pair k seeded `seed + k`.
+
+    `ppo.rollout_per_partner` is the rollout length per iteration. With `shared_seats`
+    one module plays both seats (Hanabi); otherwise each seat has its own module and the
+    `partner_agent` seat of each pair becomes a partner.
+    """
+
+    name: FolderName = "selfplay"
+    env: EnvName
+    env_config: dict[str, Any] = Field(default_factory=dict)
+    train_pairs: PositiveInt = 10
+    test_pairs: int = Field(10, ge=0)
+    seed: int = 0
+    pair: int = Field(0, ge=0)
+    shared_seats: bool = False
+    partner_agent: str = "player_1"
+    greedy_partners: bool = True
+    model: ModelSettings = Field(default_factory=ModelSettings)
+    ppo: PPOSettings = Field(default_factory=PPOSettings)
+    run: RunSettings = Field(default_factory=RunSettings)
+    gate: GateSettings
+
+    def resolve(self) -> "SelfPlayConfig":
+        """Return a copy with the game's defaults filled in (see `ExperimentConfig.resolve`)."""
+        as_exp = ExperimentConfig(population="-", model=self.model, ppo=self.ppo, run=self.run).resolve(self.env)
+        return self.model_copy(update={"model": as_exp.model, "ppo": as_exp.ppo, "run": as_exp.run})

@@ -1,0 +1,83 @@
+"""`ExperimentConfig`: one ego-training experiment (game, partners, method, regulariser, sizes, PPO, run).
+
+It is the schema of `rllib-conv train` and `sweep` (any value may be a Tune grid; see
+`rllib_conv.common.config_files`), and what every later pipeline reads back from a
+trained ego's `config.yaml` (`trial_config`).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from pydantic import Field, model_validator
+
+from rllib_conv.common import config_files
+from rllib_conv.common.config_files import Strict
+from rllib_conv.common.methods import MethodName, method
+from rllib_conv.common.run_folders import read_trial_config
+from rllib_conv.envs.defaults import FALLBACK_DEFAULTS, GAME_DEFAULTS
+from rllib_conv.learners.settings import LearnerSettings
+from rllib_conv.training.settings import EnvName, FolderName, MAMLSettings, ModelSettings, PPOSettings, RunSettings
+
+
+class ExperimentConfig(Strict):
+    """One ego-training experiment: game, partners, method, regulariser, sizes, PPO, run."""
+
+    name: FolderName = "experiment"
+    env: EnvName | None = None
+    env_config: dict[str, Any] = Field(default_factory=dict)
+    population: str
+    method: MethodName = "modular"
+    lam: float = Field(LearnerSettings.lam, ge=0.0)
+    freeze: list[str] = Field(default_factory=list)
+    # Learning-rate multiplier for the task module's z layers (0 freezes them, 1 is plain PPO).
+    z_lr_scale: float = Field(LearnerSettings.z_lr_scale, ge=0.0)
+    # Weight of the head penalty (not in the paper; see MarginalPPOLearner): heads carry conventions only.
+    head_l2: float = Field(LearnerSettings.head_l2, ge=0.0)
+    seed: int = 0
+    model: ModelSettings = Field(default_factory=ModelSettings)
+    ppo: PPOSettings = Field(default_factory=PPOSettings)
+    run: RunSettings = Field(default_factory=RunSettings)
+    maml: MAMLSettings = Field(default_factory=MAMLSettings)
+
+    @model_validator(mode="after")
+    def _consistent(self) -> "ExperimentConfig":
+        if not method(self.method).regularised and self.lam > 0:
+            raise ValueError(f"lam must be 0 for method {self.method!r} (it has no learned task logits to regularise)")
+        if not method(self.method).head_penalty and self.head_l2 > 0:
+            raise ValueError(f"head_l2 must be 0 for method {self.method!r} (only modular heads sit on task logits that can take over)")
+        return self
+
+    def resolve(self, game: str) -> "ExperimentConfig":
+        """Return a copy for `game` with every unset game-dependent field set to the paper's value."""
+        d = GAME_DEFAULTS.get(game, FALLBACK_DEFAULTS)
+        out = self.model_copy(deep=True)
+        out.env = game
+        out.model.hidden = out.model.hidden or d["hidden"]
+        for key in ("rollout_per_partner", "minibatch_size", "num_epochs"):
+            if getattr(out.ppo, key) is None:
+                setattr(out.ppo, key, d[key])
+        out.run.timesteps = out.run.timesteps or d["timesteps"]
+        return out
+
+    def learner_settings(self) -> LearnerSettings:
+        """What the learner needs of this experiment: regulariser, head penalty, freezing, Adam."""
+        return LearnerSettings(
+            lam=self.lam, freeze=tuple(self.freeze), adam_eps=self.ppo.adam_eps, z_lr_scale=self.z_lr_scale, head_l2=self.head_l2
+        )
+
+
+def trial_config(trial: str | Path) -> ExperimentConfig:
+    """The resolved ego config a trained-ego trial folder was run with (its `config.yaml`)."""
+    return ExperimentConfig.model_validate(read_trial_config(trial))
+
+
+def load(path: str | Path, overrides: list[str] = ()) -> dict[str, Any]:
+    """Read an experiment YAML with `--set` overrides, validated (every grid combination); the raw dict for Tune."""
+    return config_files.load(path, overrides, schema=ExperimentConfig)
+
+
+def validate(raw: dict[str, Any], source: str = "config") -> list[ExperimentConfig]:
+    """Every grid combination of the experiment `raw`, validated."""
+    return config_files.validate(raw, source, schema=ExperimentConfig)

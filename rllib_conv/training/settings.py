@@ -1,0 +1,96 @@
+"""Typed settings shared by every training schema: network sizes, PPO, the run, MAML; and the field types they use.
+
+The schemas that combine them live beside what they configure: `experiment.ExperimentConfig`
+(one ego) here, and the pipelines' own (adaptation, zero-shot, self-play) in
+`rllib_conv.pipelines`. Unset game-dependent values (None) take the paper's value for
+the game (`rllib_conv.envs.defaults`).
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any
+
+from pydantic import AfterValidator, Field, NonNegativeFloat, NonNegativeInt, PositiveFloat, PositiveInt
+
+from rllib_conv.common.config_files import Strict
+from rllib_conv.envs.registry import factory as env_factory
+from rllib_conv.learners.settings import LearnerSettings
+
+
+def _folder_name(v: str) -> str:
+    if not v or any(c in v for c in '/\\<>:"|?* '):
+        raise ValueError(f"must be a non-empty folder name without spaces or /\\<>:\"|?*, got {v!r}")
+    return v
+
+
+def _registered_env(v: str) -> str:
+    env_factory(v)  # ValueError naming the registered envs
+    return v
+
+
+def _schedule_starts_at_zero(v: Any) -> Any:
+    if isinstance(v, list) and (not v or v[0][0] != 0 or any(a[0] >= b[0] for a, b in zip(v, v[1:]))):
+        raise ValueError("a schedule must be [[0, value], [step, value], ...] with increasing steps")
+    return v
+
+
+FolderName = Annotated[str, AfterValidator(_folder_name)]
+EnvName = Annotated[str, AfterValidator(_registered_env)]
+# A constant, or a piecewise-linear schedule [[env_step, value], ...] starting at step 0.
+EntropyCoeff = Annotated[NonNegativeFloat | list[tuple[NonNegativeInt, NonNegativeFloat]], AfterValidator(_schedule_starts_at_zero)]
+
+
+class ModelSettings(Strict):
+    """Network sizes: every layer of both modules has `hidden` units; z has `z_dim` (default hidden)."""
+
+    hidden: PositiveInt | None = None
+    z_dim: PositiveInt | None = None
+
+
+class PPOSettings(Strict):
+    """PPO hyperparameters (defaults: the paper's code, Stable-Baselines3 PPO)."""
+
+    lr: PositiveFloat = 3e-4
+    gamma: float = Field(0.99, ge=0.0, le=1.0)
+    gae_lambda: float = Field(0.95, ge=0.0, le=1.0)
+    clip_param: PositiveFloat = 0.2
+    entropy_coeff: EntropyCoeff = 0.0
+    vf_loss_coeff: float = Field(0.5, ge=0.0)
+    grad_clip: PositiveFloat | None = 0.5
+    adam_eps: PositiveFloat = LearnerSettings.adam_eps
+    rollout_per_partner: PositiveInt | None = None
+    minibatch_size: PositiveInt | None = None
+    num_epochs: PositiveInt | None = None
+
+
+class RunSettings(Strict):
+    """How long and on what: env steps, env runners, vectorised sub-envs, checkpoints, fault tolerance.
+
+    A remote env runner (`num_env_runners` > 0) that crashes is always restarted and
+    training goes on with the others meanwhile. `restart_failed_sub_environments` also
+    recreates an env that raises inside a runner (the local one too) instead of failing
+    the trial; off by default, since an env that always raises would then loop forever.
+    """
+
+    timesteps: PositiveInt | None = None
+    num_env_runners: int = Field(0, ge=0)
+    num_envs_per_env_runner: PositiveInt = 8
+    restart_failed_sub_environments: bool = False
+    # Custom Ray resources each trial asks for: {"second_node": 1} runs it only on nodes
+    # started with `ray start --resources '{"second_node": N}'`.
+    resources: dict[str, PositiveFloat] = Field(default_factory=dict)
+    checkpoint_every: PositiveInt = 10
+    keep_checkpoints: PositiveInt = 2
+    eval_episodes: PositiveInt = 200
+
+
+class MAMLSettings(Strict):
+    """First-order MAML across training partners (the paper's Table 5 values).
+
+    Each outer step takes the next training partner, runs `inner_iterations` PPO updates
+    (learning rate `ppo.lr`, the paper's inner lr 3e-4) from the meta-weights theta, and
+    moves theta by `outer_step * (adapted - theta)`.
+    """
+
+    inner_iterations: PositiveInt = 4
+    outer_step: float = Field(0.25, gt=0.0, le=1.0)
