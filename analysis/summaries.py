@@ -1,46 +1,43 @@
-"""Summary statistics shared by the figures and the report: means with 95% intervals, adaptation AUC, user-study scores.
+"""Summary statistics shared by the figures and the report: seed-level means with 95% intervals, paired and
+unpaired differences, adaptation AUC, user-study scores.
 
-Intervals are two-sided 95% Student-t intervals of a mean over independent units
-(seeds, or seed x test-partner curves); with one unit there is no interval (NaN).
-The t quantiles are computed here (table up to 30 degrees of freedom, Cornish-Fisher
-expansion above), so the package needs nothing beyond numpy and pandas.
+The unit that is replicated is the training seed: every curve or zero-shot row of one seed
+comes from the same trained ego, so a seed's (seed, test partner) rows are not independent
+and an interval over them would be too narrow. Every interval over results measured with
+test partners is therefore computed in two stages: average each seed's rows over its test
+partners, then take the two-sided 95% Student-t interval of the mean over the seed means
+(n = seeds). With balanced partners this is the interval of the grand mean in the nested
+(seed, partner) random-effects model. A (hierarchical) bootstrap is not used: with 3 to 5
+seeds it resamples among at most 10 to 126 distinct seed sets, and its percentile intervals
+are too narrow exactly where the seeds are few. With one seed there is no interval (NaN).
+
+Methods of one population share seed numbers and test partners, so a comparison of two
+methods is a paired difference: A's row (seed k, partner p) minus B's row (seed k, partner
+p), averaged per seed, then the t-interval over seeds (`paired_difference`). Groups without
+shared units (two populations) are compared by Welch's unpaired interval (`unpaired_difference`).
 """
 
 from __future__ import annotations
 
 import math
+import warnings
 from typing import Iterable, Sequence
 
 import numpy as np
 import pandas as pd
+from scipy import stats
 
 from rllib_conv.common.user_study_table import CONTEXTS, TASKS, first_try_scores
 
-# Two-sided 95% quantiles t_{0.975, df} for df = 1..30 (standard tables).
-_T975 = (
-    12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228,
-    2.201, 2.179, 2.160, 2.145, 2.131, 2.120, 2.110, 2.101, 2.093, 2.086,
-    2.080, 2.074, 2.069, 2.064, 2.060, 2.056, 2.052, 2.048, 2.045, 2.042,
-)  # fmt: skip
-_Z975 = 1.959963984540054
-
+CONFIDENCE = 0.95
+# The replicated unit: one trained ego per seed.
+SEED = "seed"
 # Keys that identify one adaptation curve (one trained ego adapting to one test partner).
 CURVE_KEYS = ["game", "population", "label", "run", "seed", "partner"]
 
 
-def t975(df: int) -> float:
-    """The 0.975 quantile of Student's t with `df` degrees of freedom (NaN for df < 1)."""
-    if df < 1:
-        return math.nan
-    if df <= len(_T975):
-        return _T975[df - 1]
-    # Cornish-Fisher expansion around the normal quantile: error < 1e-4 for df > 30.
-    z = _Z975
-    return z + (z**3 + z) / (4 * df) + (5 * z**5 + 16 * z**3 + 3 * z) / (96 * df**2)
-
-
 def mean_ci(values: Iterable[float]) -> tuple[float, float, float, int]:
-    """Mean of the finite `values`, its 95% t-interval (lo, hi) and the count n; the interval is NaN when n < 2."""
+    """Mean of the finite `values` (independent units), its 95% t-interval (lo, hi) and the count n; the interval is NaN when n < 2."""
     x = np.asarray([v for v in values if v is not None and np.isfinite(v)], dtype=float)
     n = len(x)
     if n == 0:
@@ -48,12 +45,15 @@ def mean_ci(values: Iterable[float]) -> tuple[float, float, float, int]:
     mean = float(x.mean())
     if n < 2:
         return mean, math.nan, math.nan, n
-    half = t975(n - 1) * float(x.std(ddof=1)) / math.sqrt(n)
+    half = float(stats.t.ppf(0.5 + CONFIDENCE / 2, n - 1) * stats.sem(x))
     return mean, mean - half, mean + half, n
 
 
 def summarise(df: pd.DataFrame, by: Sequence[str], value: str) -> pd.DataFrame:
-    """Group `df` by `by` and return one row per group: the `by` columns, mean, lo, hi (95% CI) and n of `value`."""
+    """Group `df` by `by` and return one row per group: the `by` columns, mean, lo, hi (95% CI) and n of `value`.
+
+    Each row of `df` counts as one independent unit; `seed_summary` is the one for rows that share seeds.
+    """
     columns = [*by, "mean", "lo", "hi", "n"]
     if df.empty:
         return pd.DataFrame(columns=columns)
@@ -64,6 +64,54 @@ def summarise(df: pd.DataFrame, by: Sequence[str], value: str) -> pd.DataFrame:
     out = pd.DataFrame(rows, columns=columns)
     out["n"] = out["n"].astype("int64")
     return out
+
+
+def seed_means(df: pd.DataFrame, by: Sequence[str], value: str) -> pd.DataFrame:
+    """One row per (`by`, seed): the mean of `value` over that seed's rows (its test partners), in column `value`."""
+    if df.empty:
+        return pd.DataFrame(columns=[*by, SEED, value])
+    return df.groupby([*by, SEED], sort=True, dropna=False)[value].mean().reset_index()
+
+
+def seed_summary(df: pd.DataFrame, by: Sequence[str], value: str) -> pd.DataFrame:
+    """`summarise` with the seed as the unit: per group, each seed's mean over its rows, then the 95% t-interval over seeds (n = seeds)."""
+    return summarise(seed_means(df, by, value), by, value)
+
+
+def paired_difference(df: pd.DataFrame, a: str, b: str, value: str, within: Sequence[str] = ("partner",), label: str = "label") -> tuple[float, float, float, int]:
+    """Mean difference A - B of `value` over the units A and B share, its 95% t-interval over seeds and the seed count.
+
+    `df` holds the rows of one population; `label` tells A's rows (`a`) from B's (`b`).
+    Rows are paired on (seed, *`within`), e.g. (seed k, partner p) of A with (seed k,
+    partner p) of B; units only one of them has are left out. Each seed's differences are
+    averaged, and the interval is over those seed means: NaN with fewer than two shared seeds.
+    """
+    keys = [SEED, *within]
+    sides = [df[df[label] == name].groupby(keys)[value].mean() for name in (a, b)]
+    both = pd.concat(sides, axis=1, keys=["a", "b"], join="inner").dropna()
+    if both.empty:
+        return math.nan, math.nan, math.nan, 0
+    per_seed = (both["a"] - both["b"]).groupby(level=SEED).mean()
+    return mean_ci(per_seed)
+
+
+def unpaired_difference(a: Iterable[float], b: Iterable[float]) -> tuple[float, float, float, int]:
+    """Difference of the means of two independent samples (seed means of two populations), Welch's 95% interval, and the smaller sample size.
+
+    The interval is NaN unless both samples have two or more units.
+    """
+    x, y = (np.asarray([v for v in s if np.isfinite(v)], dtype=float) for s in (a, b))
+    n = min(len(x), len(y))
+    if n == 0:
+        return math.nan, math.nan, math.nan, 0
+    mean = float(x.mean() - y.mean())
+    if n < 2:
+        return mean, math.nan, math.nan, n
+    with warnings.catch_warnings():
+        # Identical seeds (zero variance) are a valid case with a zero-width interval; SciPy warns about its precision.
+        warnings.simplefilter("ignore", RuntimeWarning)
+        ci = stats.ttest_ind(x, y, equal_var=False).confidence_interval(CONFIDENCE)
+    return mean, float(ci.low), float(ci.high), n
 
 
 def value_column(df: pd.DataFrame) -> str:
@@ -127,12 +175,13 @@ def bayes_optimal_return(num_contexts: int, symmetric: int, episodes: int) -> fl
 
 
 def curve_band(curves: pd.DataFrame) -> pd.DataFrame:
-    """Per (game, population, label, evaluation point): mean return over curves with its 95% interval (the bands of the adaptation figures).
+    """Per (game, population, label, evaluation point): mean return with its seed-level 95% interval (the bands of the adaptation figures).
 
-    Points are matched by their order within each curve, not by step count: on multi-step
-    games an update waits for episodes to end, so the k-th evaluation of one curve lands a
-    few env steps away from another's (Hanabi: 1280, 1281, 1287). `steps` is the point's
-    mean step count.
+    At each point every seed's curves are averaged over its test partners first, and the
+    interval is over those seed means (n = seeds). Points are matched by their order
+    within each curve, not by step count: on multi-step games an update waits for
+    episodes to end, so the k-th evaluation of one curve lands a few env steps away from
+    another's (Hanabi: 1280, 1281, 1287). `steps` is the point's mean step count.
     """
     keys = ["game", "population", "label", "point"]
     columns = [*keys[:3], "steps", "mean", "lo", "hi", "n"]
@@ -140,7 +189,7 @@ def curve_band(curves: pd.DataFrame) -> pd.DataFrame:
         return pd.DataFrame(columns=columns)
     data = with_value(curves).sort_values("steps")
     data["point"] = data.groupby(CURVE_KEYS, sort=False, dropna=False).cumcount()
-    band = summarise(data, keys, "value")
+    band = seed_summary(data, keys, "value")
     steps = data.groupby(keys, dropna=False)["steps"].mean().round().astype("int64").rename("steps").reset_index()
     return band.merge(steps, on=keys)[columns]
 
@@ -174,3 +223,15 @@ PAPER_FIGURE_OPTIONS = {"exclude_pairs": (10,), "ddof": 0, "swap_a": True}
 def paper_figure_recipe(study: pd.DataFrame) -> pd.DataFrame:
     """`user_study_scores` with the options that reproduce the paper's `fig:userstudy` from its appendix table."""
     return user_study_scores(study, **PAPER_FIGURE_OPTIONS)
+
+
+def first_try_difference(study: pd.DataFrame, a: tuple[str, str], b: tuple[str, str], pair: str = "pair_id") -> tuple[float, float, float, int]:
+    """Paired difference of first-try coordination between the (task, context) cells `a` and `b`: mean, 95% t-interval, pairs.
+
+    `study` is a frame from `loaders.load_user_study_csvs`. Every pair plays every cell, so
+    each pair gives one difference (1, 0 or -1: coordinated on its first try in `a` but not
+    in `b`, ...); the interval is over the pairs that played both cells, the study's replicated unit.
+    """
+    first = study[study["try"] == 1].set_index(["task", "context", pair])["coordinated"].astype(float).sort_index()
+    both = pd.concat([first.loc[a], first.loc[b]], axis=1, keys=["a", "b"], join="inner")
+    return mean_ci(both["a"] - both["b"])

@@ -1,4 +1,4 @@
-"""Loaders on the fixture run folder (a subset of a real quick bandit reproduction), and the summary statistics."""
+"""Loaders on the fixture run folder (a subset of a real quick bandit reproduction)."""
 
 from __future__ import annotations
 
@@ -7,11 +7,9 @@ import shutil
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 import pytest
 
 from analysis import loaders
-from analysis.summaries import adaptation_auc, curve_band, mean_ci, summarise, t975, value_column, with_value
 
 FIXTURE = Path(__file__).parent / "fixtures" / "repro"
 GAME = FIXTURE / "bandit"
@@ -158,60 +156,6 @@ def test_user_study_csvs_concatenate(tmp_path: Path) -> None:
         loaders.load_user_study_csvs(tmp_path / "absent.csv")
 
 
-# --- summaries ----------------------------------------------------------------------------------
-
-
-def test_mean_ci_known_values() -> None:
-    # [1, 2, 3, 4]: mean 2.5, sample sd 1.2910, t(0.975, 3) = 3.182, half-width 3.182 * 1.2910 / 2 = 2.0540.
-    mean, lo, hi, n = mean_ci([1, 2, 3, 4])
-    assert (mean, n) == (2.5, 4)
-    assert lo == pytest.approx(0.4460, abs=1e-3) and hi == pytest.approx(4.5540, abs=1e-3)
-    mean, lo, hi, n = mean_ci([0.7, float("nan")])
-    assert (mean, n) == (0.7, 1) and math.isnan(lo) and math.isnan(hi)
-    assert mean_ci([])[3] == 0
-
-
-def test_t_quantiles() -> None:
-    assert t975(1) == 12.706 and t975(30) == 2.042
-    assert t975(40) == pytest.approx(2.021, abs=1e-3) and t975(120) == pytest.approx(1.980, abs=1e-3)
-    assert math.isnan(t975(0))
-
-
-def test_summarise_groups() -> None:
-    df = pd.DataFrame({"g": ["a", "a", "b"], "v": [1.0, 3.0, 5.0]})
-    s = summarise(df, ["g"], "v").set_index("g")
-    assert s.loc["a", "mean"] == 2.0 and s.loc["a", "n"] == 2 and math.isnan(s.loc["b", "lo"])
-
-
-def test_value_column_prefers_exact() -> None:
-    df = pd.DataFrame({"mean_return": [0.5, 0.6], "exact_return": [0.55, 0.65]})
-    assert value_column(df) == "exact_return"
-    assert value_column(df.assign(exact_return=[0.5, float("nan")])) == "mean_return"
-    assert value_column(df.drop(columns="exact_return")) == "mean_return"
-
-
-def test_adaptation_auc_on_fixture() -> None:
-    auc = adaptation_auc(loaders.load_adaptation(FIXTURE)).set_index("label")
-    # modular-lam0.5's exact returns at steps 0..64: 0.46471, 0.55093, 0.67293, 0.77318, 0.83657; mean 0.65966.
-    assert auc.loc["modular-lam0.5", "auc"] == pytest.approx(0.659664, abs=1e-6)
-    assert auc.loc["modular-lam0.5", "start"] == pytest.approx(0.4647056758403778)
-    assert auc.loc["modular-lam0.5", "end"] == pytest.approx(0.8365700840950012)
-    assert auc.loc["agg", "points"] == 5 and auc.loc["agg", "last_step"] == 64
-    assert (auc["value_source"] == "exact_return").all()
-    assert set(with_value(loaders.load_zeroshot(FIXTURE))["value_source"]) == {"exact_return"}
-
-
-def test_curve_band_matches_points_by_order_not_step_count() -> None:
-    # Two Hanabi-like curves whose evaluations land a few steps apart: 3 points, 2 curves each.
-    base = {"game": "hanabi", "population": "p", "label": "m", "run": "r", "seed": 0}
-    rows = [
-        {**base, "partner": "a", "steps": s, "mean_return": v} for s, v in [(0, 1.0), (640, 2.0), (1281, 3.0)]
-    ] + [{**base, "partner": "b", "steps": s, "mean_return": v} for s, v in [(0, 3.0), (642, 4.0), (1287, 5.0)]]
-    band = curve_band(pd.DataFrame(rows))
-    assert band["steps"].tolist() == [0, 641, 1284]
-    assert band["mean"].tolist() == [2.0, 3.0, 4.0] and band["n"].tolist() == [2, 2, 2]
-
-
 def test_load_sweep_reads_an_experiment_folder(tmp_path) -> None:
     runs = FIXTURE / "bandit" / "runs"
     sweep = tmp_path / "my-sweep"
@@ -223,15 +167,3 @@ def test_load_sweep_reads_an_experiment_folder(tmp_path) -> None:
     assert curves.groupby("trial")["training_iteration"].apply(lambda s: s.is_monotonic_increasing and s.is_unique).all()
     with pytest.raises(ValueError, match="holds no trained-ego trial"):
         loaders.load_sweep(tmp_path / "empty")
-
-
-def test_bayes_optimal_adapter_known_answers() -> None:
-    from analysis.summaries import bayes_optimal_return
-
-    # 4 contexts, 2 symmetric: before any episode 2/4 * 1 + 2/4 * 1/2 = 0.75.
-    assert bayes_optimal_return(4, 2, 0) == pytest.approx(0.75)
-    # after 1 episode each symmetric context is unseen with prob 3/4: 0.5 + 0.5 * (1 - 3/8) = 0.8125.
-    assert bayes_optimal_return(4, 2, 1) == pytest.approx(0.8125)
-    assert bayes_optimal_return(4, 0, 0) == 1.0 and bayes_optimal_return(4, 4, 10_000) == pytest.approx(1.0)
-    with pytest.raises(ValueError, match="symmetric"):
-        bayes_optimal_return(4, 5, 0)
