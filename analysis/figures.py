@@ -1,8 +1,12 @@
 """The report's figures: each function takes a tidy DataFrame (from `analysis.loaders`) and returns a matplotlib Figure.
 
 Nothing here reads files or shows windows; `save` writes a figure as PNG and PDF.
-Means are over units (seed x test-partner curves, or seeds) with 95% t-intervals drawn
-as bands or error bars (see `analysis.summaries`); a group with one unit has no band.
+Lines and bars are means over seeds, each seed averaged over its test partners first; bands
+and error bars are the seed-level 95% t-intervals of `analysis.summaries` (no band for a
+method with one seed); `band_caption` says so with the n, for the report's caption under a
+figure or the `note` a figure function prints under its legend.
+Colours are colour-blind safe (Okabe & Ito's palette, then Tol's muted one) and each method
+has its own colour and line style; the paper's method (ours λ=0.5) is drawn on top, thicker.
 """
 
 from __future__ import annotations
@@ -19,26 +23,30 @@ import pandas as pd  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 
 from analysis.paper import label_name, population_name  # noqa: E402
-from analysis.summaries import curve_band, summarise, with_value  # noqa: E402
+from analysis.summaries import curve_band, seed_summary, with_value  # noqa: E402
 
-# Methods in the order of the paper's legends; colours follow the paper's bar charts where it
-# has them (L1 red = λ 0.0, L3 salmon, L4 orange = λ 0.5, grey baselines, green oracle).
+# Methods in the order of the paper's legends.
 LABEL_ORDER: tuple[str, ...] = ("modular-lam0", "modular-lam0.3", "modular-lam0.5", "modular-lam0.5-hl0.01", "modular-lam0.5-pick", "modular-lam0.5-hl0.01-pick", "lowz-lam0.5", "agg", "no_task_logits", "maml", "oracle", "scratch")
-LABEL_COLOURS: dict[str, tuple[float, float, float] | str] = {
-    "modular-lam0": (0.6627, 0.1608, 0.1804),
-    "modular-lam0.3": (0.9608, 0.5020, 0.5098),
-    "modular-lam0.5": (1.0000, 0.6471, 0.1765),
-    "modular-lam0.5-hl0.01": "tab:brown",  # not in the paper
-    "modular-lam0.5-pick": "tab:pink",  # not in the paper
-    "modular-lam0.5-hl0.01-pick": "tab:olive",  # not in the paper
-    "lowz-lam0.5": "tab:purple",
-    "agg": (0.4118, 0.4118, 0.4118),
-    "no_task_logits": (0.6627, 0.6627, 0.6627),
-    "maml": "tab:blue",
-    "oracle": "tab:green",
-    "scratch": "black",
+PAPER_METHOD = "modular-lam0.5"
+# (colour, line style) per method: no two colours alike, and every method but the paper's and the
+# baselines with a dash pattern of its own. The paper's method, the baselines, the oracle and
+# scratch take the Okabe-Ito colours (colour-blind safe: Okabe & Ito 2008), ours' variants Tol's muted ones.
+LABEL_STYLES: dict[str, tuple[str, str | tuple]] = {
+    "modular-lam0.5": ("#D55E00", "-"),  # vermillion: the paper's method
+    "agg": ("#0072B2", "-"),  # blue
+    "no_task_logits": ("#56B4E9", "-."),  # sky blue
+    "maml": ("#CC79A7", "-"),  # reddish purple
+    "oracle": ("#009E73", "-"),  # bluish green (the paper's "green oracle curve")
+    "scratch": ("#000000", ":"),
+    "modular-lam0": ("#E69F00", "--"),  # orange
+    "modular-lam0.3": ("#882255", (0, (3, 1, 1, 1))),  # wine, dash-dot
+    "lowz-lam0.5": ("#332288", (0, (1, 1))),  # indigo, dense dots
+    "modular-lam0.5-hl0.01": ("#44AA99", (0, (5, 1, 1, 1, 1, 1))),  # teal, dash-dot-dot (not in the paper)
+    "modular-lam0.5-pick": ("#999933", (0, (8, 2))),  # olive, long dashes (not in the paper)
+    "modular-lam0.5-hl0.01-pick": ("#888888", (0, (8, 2, 1, 2))),  # grey, long dash-dot (not in the paper)
 }
-TASK_COLOURS = {"train": "0.8", "test": (1.0, 0.5, 0.0)}  # the paper's grey and orange bars
+OTHER_STYLE: tuple[str, str | tuple] = ("#117733", (0, (1, 3)))  # any label not listed: Tol's green, sparse dots
+TASK_COLOURS = {"train": "0.8", "test": "#E69F00"}  # the paper's grey and orange bars (orange: Okabe-Ito)
 
 
 def ordered_labels(labels: Sequence[str]) -> list[str]:
@@ -47,9 +55,27 @@ def ordered_labels(labels: Sequence[str]) -> list[str]:
     return known + sorted(set(labels) - set(LABEL_ORDER))
 
 
-def colour(label: str) -> object:
+def colour(label: str) -> str:
     """The plotting colour of a method label."""
-    return LABEL_COLOURS.get(label, "tab:cyan")
+    return LABEL_STYLES.get(label, OTHER_STYLE)[0]
+
+
+def band_caption(frame: pd.DataFrame, what: str = "Bands", averaged: str | None = "its test partners") -> str:
+    """What a figure's bands or error bars are, with their n: `<what>: seed-level 95% t-interval ..., n = 3 seeds per method`.
+
+    `frame` is the figure's data (one row per seed, partner, ...); n counts the seeds of each
+    (population, label) it holds, as a range when they differ. `averaged` names what each
+    seed is averaged over first (None: nothing, one value per seed).
+    """
+    keys = [k for k in ("population", "label") if k in frame.columns]
+    if frame.empty or "seed" not in frame.columns:
+        return f"{what}: seed-level 95% t-interval (no data)."
+    counts = frame.groupby(keys)["seed"].nunique() if keys else pd.Series([frame["seed"].nunique()])
+    low, high = int(counts.min()), int(counts.max())
+    n = f"{low} seed" if low == high == 1 else f"{low} seeds" if low == high else f"{low}–{high} seeds"
+    first = f" (each seed averaged over {averaged} first)" if averaged else ""
+    none = "; no band where n = 1" if low == 1 else ""
+    return f"{what}: 95% t-interval over seeds{first}, n = {n} per method{none}."
 
 
 def save(fig: Figure, path_stem: str | Path, dpi: int = 130) -> tuple[Path, Path]:
@@ -74,37 +100,54 @@ def _grid(n: int, ncols: int, size: tuple[float, float] = (4.0, 3.0)) -> tuple[F
     return fig, flat[:n]
 
 
-def _legend_below(fig: Figure, axes: Sequence[plt.Axes]) -> None:
-    handles, labels = {}, {}
+def _legend_below(fig: Figure, axes: Sequence[plt.Axes], note: str = "") -> None:
+    """One legend for all `axes`, below them and no wider than the figure (fewer columns until it fits), and `note` under it."""
+    handles: dict[str, object] = {}
     for ax in axes:
         for h, lab in zip(*ax.get_legend_handles_labels()):
-            if lab not in labels:
-                handles[lab], labels[lab] = h, lab
+            handles.setdefault(lab, h)
     fig.tight_layout()
+    bottom = 0.0
+    renderer = fig.canvas.get_renderer()
     if handles:
         # Below the figure, whatever its rows: `save` crops to the drawn content, legend included.
-        fig.legend(list(handles.values()), list(labels.values()), loc="upper center", ncol=min(5, len(handles)), frameon=False, bbox_to_anchor=(0.5, 0.0))
+        for ncol in range(min(5, len(handles)), 0, -1):
+            legend = fig.legend(list(handles.values()), list(handles), loc="upper center", ncol=ncol, frameon=False, bbox_to_anchor=(0.5, 0.0), fontsize=8)
+            box = legend.get_window_extent(renderer)
+            if box.width <= fig.bbox.width or ncol == 1:
+                break
+            legend.remove()
+        bottom = box.y0 / fig.bbox.height
+    if note:
+        fig.text(0.5, bottom - 0.01, note, ha="center", va="top", fontsize=7, wrap=True)
 
 
 def _band_plot(ax: plt.Axes, band: pd.DataFrame, x: str) -> None:
-    """One line per label with its 95% band (`band` has columns label, x, mean, lo, hi)."""
+    """One line per label with its 95% band (`band` has columns label, x, mean, lo, hi); the paper's method on top, thicker."""
     for label in ordered_labels(band["label"].unique()):
         part = band[band["label"] == label].sort_values(x)
-        style = "--" if label == "scratch" else "-"
-        ax.plot(part[x], part["mean"], style, color=colour(label), label=label_name(label), lw=1.6)
+        ours = label == PAPER_METHOD
+        colour_, style = LABEL_STYLES.get(label, OTHER_STYLE)
+        ax.plot(part[x], part["mean"], linestyle=style, color=colour_, label=label_name(label), lw=2.6 if ours else 1.5, zorder=4 if ours else 3)
         has_ci = part["lo"].notna()
         if has_ci.any():
-            ax.fill_between(part.loc[has_ci, x], part.loc[has_ci, "lo"], part.loc[has_ci, "hi"], color=colour(label), alpha=0.18, lw=0)
+            ax.fill_between(part.loc[has_ci, x], part.loc[has_ci, "lo"], part.loc[has_ci, "hi"], color=colour_, alpha=0.25 if ours else 0.12, lw=0, zorder=2)
 
 
 def adaptation_curves(
-    curves: pd.DataFrame, panels: Sequence[str] | None = None, titles: Mapping[str, str] | None = None, ncols: int = 4, title: str | None = None
+    curves: pd.DataFrame,
+    panels: Sequence[str] | None = None,
+    titles: Mapping[str, str] | None = None,
+    ncols: int = 4,
+    title: str | None = None,
+    note: str = "",
 ) -> Figure:
     """Adaptation to a new partner (the paper's fig:armsexp / fig:armsexpselfplay / fig:blockshanabiexp).
 
     `curves` is `loaders.load_adaptation`'s frame. One panel per population (`panels`
     picks and orders them; default all, by name), one line per method label: mean return
-    over every (seed, test partner) curve at each adaptation step, with its 95% band.
+    over seeds (each seed averaged over its test partners) at each adaptation step, with
+    its seed-level 95% band (`summaries.curve_band`); `note` is printed under the legend.
     Returns the Figure.
     """
     populations = list(panels) if panels is not None else sorted(curves["population"].unique())
@@ -118,20 +161,21 @@ def adaptation_curves(
         ax.grid(alpha=0.3)
     if title:
         fig.suptitle(title)
-    _legend_below(fig, axes)
+    _legend_below(fig, axes, note)
     return fig
 
 
-def training_curves(training: pd.DataFrame, metric: str = "return_mean", panels: Sequence[str] | None = None, ncols: int = 4) -> Figure:
+def training_curves(training: pd.DataFrame, metric: str = "return_mean", panels: Sequence[str] | None = None, ncols: int = 4, note: str = "") -> Figure:
     """Training return against env steps: one panel per population, one line per label, 95% band over seeds.
 
     `training` is `loaders.load_training`'s frame; `metric` one of its columns. Seeds
-    are aligned on `training_iteration`, their steps averaged. Returns the Figure.
+    are aligned on `training_iteration`, their steps averaged; `note` is printed under the
+    legend. Returns the Figure.
     """
     populations = list(panels) if panels is not None else sorted(training["population"].unique())
     fig, axes = _grid(max(1, len(populations)), ncols)
     if not training.empty and metric in training.columns:
-        band = summarise(training.dropna(subset=[metric]), ["population", "label", "training_iteration"], metric)
+        band = seed_summary(training.dropna(subset=[metric]), ["population", "label", "training_iteration"], metric)
         steps = training.groupby(["population", "label", "training_iteration"])["steps"].mean().rename("steps").reset_index()
         band = band.merge(steps, on=["population", "label", "training_iteration"])
         for ax, population in zip(axes, populations):
@@ -141,72 +185,82 @@ def training_curves(training: pd.DataFrame, metric: str = "return_mean", panels:
         ax.set_xlabel("training env steps")
         ax.set_ylabel(metric)
         ax.grid(alpha=0.3)
-    _legend_below(fig, axes)
+    _legend_below(fig, axes, note)
     return fig
 
 
 def _grouped_bars(
-    ax: plt.Axes, summary: pd.DataFrame, groups: Sequence[str], paper: Mapping[tuple[str, str], float] | None, paper_label: str
+    ax: plt.Axes, summary: pd.DataFrame, groups: Sequence[str], paper: Mapping[tuple[str, str], float] | None, paper_label: str, values: bool = False
 ) -> None:
-    """Bars of `summary` (group, label, mean, lo, hi) grouped by `groups`, one colour per label; paper values as black markers."""
+    """Bars of `summary` (group, label, mean, lo, hi) grouped by `groups`, one colour per label; paper values as black crosses.
+
+    Each group shows only the labels it has, side by side and centred (no empty slot for a
+    method that was not run); `values` prints each bar's mean above it.
+    """
     labels = ordered_labels(summary["label"].unique())
-    width = 0.8 / max(1, len(labels))
+    widest = max([summary[summary["group"] == g]["label"].nunique() for g in groups] or [1])
+    width = 0.8 / max(1, widest)
+    drawn: set[str] = set()
     marked = False
-    for j, label in enumerate(labels):
-        xs, heights, errs = [], [], [[], []]
-        for i, group in enumerate(groups):
-            row = summary[(summary["group"] == group) & (summary["label"] == label)]
-            if row.empty:
-                continue
-            r = row.iloc[0]
-            x = i - 0.4 + width * (j + 0.5)
-            xs.append(x)
-            heights.append(r["mean"])
-            errs[0].append(r["mean"] - r["lo"] if np.isfinite(r["lo"]) else 0.0)
-            errs[1].append(r["hi"] - r["mean"] if np.isfinite(r["hi"]) else 0.0)
+    for i, group in enumerate(groups):
+        part = summary[summary["group"] == group].set_index("label")
+        present = [lab for lab in labels if lab in part.index]
+        for j, label in enumerate(present):
+            r = part.loc[label]
+            x = i + width * (j - (len(present) - 1) / 2)
+            err = [[r["mean"] - r["lo"] if np.isfinite(r["lo"]) else 0.0], [r["hi"] - r["mean"] if np.isfinite(r["hi"]) else 0.0]]
+            ax.bar([x], [r["mean"]], width=width * 0.95, color=colour(label), label=label_name(label) if label not in drawn else None, yerr=err, capsize=2, edgecolor="black", lw=0.4)
+            drawn.add(label)
+            if values:
+                # Above the error bar, so that the two never overlap.
+                top = r["hi"] if np.isfinite(r["hi"]) else r["mean"]
+                ax.annotate(f"{r['mean']:.3f}", (x, top), xytext=(0, 2), textcoords="offset points", ha="center", va="bottom", fontsize=6, rotation=90)
             if paper and (group, label) in paper:
                 ax.plot([x], [paper[(group, label)]], marker="x", color="black", ms=7, mew=2, ls="none", label=paper_label if not marked else None)
                 marked = True
-        if xs:
-            ax.bar(xs, heights, width=width * 0.95, color=colour(label), label=label_name(label), yerr=errs, capsize=2, edgecolor="black", lw=0.4)
+    if values:
+        ax.margins(y=0.18)  # room for the printed values
     ax.set_xticks(range(len(groups)), [population_name(g) for g in groups], fontsize=8)
     ax.grid(axis="y", alpha=0.3)
 
 
-def marginal_bars(marginals: pd.DataFrame, paper: Mapping[tuple[str, str], float] | None = None) -> Figure:
+def marginal_bars(marginals: pd.DataFrame, paper: Mapping[tuple[str, str], float] | None = None, note: str = "") -> Figure:
     """Distance between each task module and the true marginals (the paper's fig:marginals).
 
     `marginals` is `loaders.load_marginals`'s frame: bars per population (groups) and
-    method label, height = mean `distance` over seeds with 95% error bars. `paper` maps
-    (population, label) to the paper's value, drawn as black crosses. Returns the Figure.
+    method label, height = mean `distance` over seeds (printed on the bar) with 95% error
+    bars; only the methods run in a population get a bar. `paper` maps (population, label)
+    to the paper's value, drawn as black crosses; `note` is printed under the legend. Returns the Figure.
     """
     fig, ax = plt.subplots(figsize=(max(5.0, 1.6 * max(1, marginals["population"].nunique()) + 3), 3.4))
-    summary = summarise(marginals, ["population", "label"], "distance").rename(columns={"population": "group"})
-    _grouped_bars(ax, summary, sorted(summary["group"].unique()), paper, "paper")
+    summary = seed_summary(marginals, ["population", "label"], "distance").rename(columns={"population": "group"})
+    _grouped_bars(ax, summary, sorted(summary["group"].unique()), paper, "paper", values=True)
+    ax.set_ylim(bottom=0.0)  # distances are non-negative; a t-interval reaching below 0 is cut there
     ax.set_ylabel("L1 distance to true marginals")
     ax.set_title("task module vs true marginals (lower is better)", fontsize=10)
-    _legend_below(fig, [ax])
+    _legend_below(fig, [ax], note)
     return fig
 
 
-def zeroshot_bars(zeroshot: pd.DataFrame, paper: Mapping[tuple[str, str], float] | None = None) -> Figure:
+def zeroshot_bars(zeroshot: pd.DataFrame, paper: Mapping[tuple[str, str], float] | None = None, note: str = "") -> Figure:
     """Zero-shot return on the new task with the test partners (the paper's fig:zeroshot).
 
     `zeroshot` is `loaders.load_zeroshot`'s frame. One panel per game (their score scales
-    differ), bars per population and method label: mean over (seed, test partner) of the
-    exact return where known, else the evaluated mean, with 95% error bars; `paper`
-    values as black crosses. Returns the Figure.
+    differ), bars per population and method label: mean over seeds (each averaged over its
+    test partners) of the exact return where known, else the evaluated mean, with
+    seed-level 95% error bars; `paper` values as black crosses; `note` is printed under the
+    legend. Returns the Figure.
     """
     games = sorted(zeroshot["game"].unique()) if not zeroshot.empty else ["(none)"]
     fig, axes = _grid(len(games), len(games), size=(5.0, 3.4))
     data = with_value(zeroshot)
     for ax, game in zip(axes, games):
         part = data[data["game"] == game]
-        summary = summarise(part, ["population", "label"], "value").rename(columns={"population": "group"})
+        summary = seed_summary(part, ["population", "label"], "value").rename(columns={"population": "group"})
         _grouped_bars(ax, summary, sorted(summary["group"].unique()), paper, "paper")
         ax.set_ylabel("zero-shot return")
         ax.set_title(game, fontsize=10)
-    _legend_below(fig, axes)
+    _legend_below(fig, axes, note)
     return fig
 
 

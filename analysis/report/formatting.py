@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Iterable, Sequence
+from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
 
@@ -18,6 +18,11 @@ def fmt_ci(mean: float, lo: float, hi: float, n: int, digits: int = 3) -> str:
     if not (np.isfinite(lo) and np.isfinite(hi)):
         return f"{mean:.{digits}f} (n={n}, no interval)"
     return f"{mean:.{digits}f} [{lo:.{digits}f}, {hi:.{digits}f}] (n={n})"
+
+
+def fmt_summary(row: Mapping[str, Any], digits: int = 3) -> str:
+    """`fmt_ci` of one row of a `summarise` / `seed_summary` frame (mean, lo, hi, n)."""
+    return fmt_ci(float(row["mean"]), float(row["lo"]), float(row["hi"]), int(row["n"]), digits)
 
 
 def md_table(headers: Sequence[str], rows: Iterable[Sequence[object]]) -> str:

@@ -1,15 +1,22 @@
-"""Comparisons of a paper number with ours, checks of a paper claim, and the rules that judge them."""
+"""Comparisons of a paper number with ours, checks of a paper claim, and the rules that judge them.
+
+A paper number is compared with our seed-level 95% interval (`Comparison`); a claim "A beats
+B" with the paired difference of A and B over the seeds they share (`Difference`), and gets
+exactly one of three verdicts (`VERDICTS`).
+"""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Iterable
+from typing import Any, Iterable, Sequence
 
 import numpy as np
 import pandas as pd
 
 from analysis import paper
-from analysis.report.formatting import fmt_ci, md_table, paper_tolerance
+from analysis.paper import label_name, population_name
+from analysis.report.formatting import digits, fmt_ci, md_table, paper_tolerance
+from analysis.summaries import paired_difference
 
 
 @dataclass
@@ -64,17 +71,23 @@ class Comparison:
             return "paper inside our 95% CI"
         if self.status == "outside":
             return f"**differs**: ours {word} by {abs(d):.{self.digits}f}"
-        return f"{'**differs**' if self.differs else 'close'} (single run): ours {word} by {abs(d):.{self.digits}f}"
+        return f"{'**differs**' if self.differs else 'close'} (one seed): ours {word} by {abs(d):.{self.digits}f}"
 
     def row(self) -> list[str]:
         """Cells: what, paper, ours (mean [CI] (n)), verdict."""
         return [self.what, f"{self.paper_value:g}", fmt_ci(self.mean, self.lo, self.hi, self.n, self.digits), self.verdict]
 
 
+# The only verdicts a claim can get: "A beats B" is supported when the whole 95% interval of
+# A's advantage over B is above 0, contradicted when it is below 0, and not shown otherwise
+# (an interval containing 0, one seed without an interval, or data missing).
+SUPPORTED, NOT_SHOWN, CONTRADICTED = "supported", "not shown", "contradicted"
+VERDICTS: tuple[str, ...] = (SUPPORTED, NOT_SHOWN, CONTRADICTED)
+
+
 @dataclass
 class ClaimCheck:
-    """A paper claim checked on our data: 'supported', 'supported (intervals overlap)', 'not shown (intervals overlap)',
-    'contradicted', 'undetermined'."""
+    """A paper claim checked on our data: one of `VERDICTS`, with the evidence (the differences and their intervals)."""
 
     claim: paper.Claim
     scope: str
@@ -82,40 +95,109 @@ class ClaimCheck:
     evidence: str
     game: str | None = None
 
+    def __post_init__(self) -> None:
+        if self.verdict not in VERDICTS:
+            raise ValueError(f"verdict {self.verdict!r} is not one of {VERDICTS}")
+
     def row(self) -> list[str]:
         """Cells: scope, verdict, evidence."""
         return [self.scope, self.verdict, self.evidence]
 
 
-def compare(a: tuple[float, float, float], b: tuple[float, float, float]) -> str:
-    """'clear' if a's interval is above b's, 'mean' if only a's mean is higher, 'tie' if a's mean is not higher
-    but the intervals overlap, 'no' otherwise (a's interval below b's, or no intervals to tell)."""
-    if a[0] > b[0]:
-        return "clear" if np.isfinite(a[1]) and np.isfinite(b[2]) and a[1] > b[2] else "mean"
-    return "tie" if np.isfinite(a[2]) and np.isfinite(b[1]) and a[2] >= b[1] else "no"
+@dataclass(frozen=True)
+class Difference:
+    """The difference `a` - `b` of two named results, oriented so that above 0 supports the claim, with its 95% interval over `n` units (seeds, or pairs of people)."""
+
+    a: str
+    b: str
+    mean: float
+    lo: float
+    hi: float
+    n: int
+
+    @property
+    def verdict(self) -> str:
+        """Whether the claim "A beats B" is supported, contradicted or not shown by the interval."""
+        if not (np.isfinite(self.lo) and np.isfinite(self.hi)):
+            return NOT_SHOWN
+        return SUPPORTED if self.lo > 0 else CONTRADICTED if self.hi < 0 else NOT_SHOWN
+
+    def text(self, places: int = 3) -> str:
+        """`A − B +0.012 [+0.004, +0.020] (n=3)`, or with `(n=1, no interval)` / `no shared seeds`."""
+        if self.n == 0 or not np.isfinite(self.mean):
+            return f"{self.a} − {self.b}: no shared seeds"
+        if not (np.isfinite(self.lo) and np.isfinite(self.hi)):
+            return f"{self.a} − {self.b} {self.mean:+.{places}f} (n={self.n}, no interval)"
+        return f"{self.a} − {self.b} {self.mean:+.{places}f} [{self.lo:+.{places}f}, {self.hi:+.{places}f}] (n={self.n})"
 
 
-def overall_verdict(outcomes: list[str]) -> str:
-    """The verdict on 'a beats every b' from `compare`'s outcomes: a lower mean inside overlapping
-    intervals is 'not shown', not 'contradicted'."""
-    if all(o == "clear" for o in outcomes):
-        return "supported"
-    if all(o in ("clear", "mean") for o in outcomes):
-        return "supported (intervals overlap)"
-    return "contradicted" if "no" in outcomes else "not shown (intervals overlap)"
+def all_hold(verdicts: Iterable[str]) -> str:
+    """The verdict on "A beats every B" from the verdicts on each "A beats B": contradicted if any is, supported if all are."""
+    verdicts = list(verdicts)
+    if CONTRADICTED in verdicts:
+        return CONTRADICTED
+    return SUPPORTED if verdicts and all(v == SUPPORTED for v in verdicts) else NOT_SHOWN
 
 
-def against(p: pd.DataFrame, label: str, others: list[str]) -> dict[str, str]:
-    """`compare`'s outcome of `label` against each of `others` (rows of one population's AUC summary, by label)."""
-    a = (p.at[label, "mean"], p.at[label, "lo"], p.at[label, "hi"])
-    return {lab: compare(a, (p.at[lab, "mean"], p.at[lab, "lo"], p.at[lab, "hi"])) for lab in others}
+def advantage(df: pd.DataFrame, a: str, b: str, value: str, within: Sequence[str], lower_is_better: bool = False) -> Difference:
+    """Method `a`'s paired advantage over method `b` on the (seed, *`within`) units they share (rows of one population, by `label`).
+
+    For returns it is A - B; for distances (`lower_is_better`) B - A, and the difference is named so.
+    """
+    first, second = (b, a) if lower_is_better else (a, b)
+    return Difference(label_name(first), label_name(second), *paired_difference(df, first, second, value, within))
 
 
-def claims_block(topic: str, claims: Iterable[Any], checks: list[ClaimCheck]) -> list[str]:
-    """Markdown lines: each of the paper's `claims` on `topic` with the table of its `checks` (none if unchecked)."""
+def beats_all(df: pd.DataFrame, a: str, others: Sequence[str], value: str, within: Sequence[str], places: int = 3, lower_is_better: bool = False) -> tuple[str, str]:
+    """The verdict on "`a` beats every one of `others`" and its evidence (each paired difference with its interval)."""
+    diffs = [advantage(df, a, b, value, within, lower_is_better) for b in others]
+    return all_hold(d.verdict for d in diffs), "; ".join(d.text(places) for d in diffs)
+
+
+def variants_block(
+    frame: pd.DataFrame,
+    value: str,
+    within: Sequence[str],
+    claimed: Iterable[str],
+    against: Sequence[str],
+    question: str,
+    lower_is_better: bool = False,
+    places: int | None = None,
+) -> list[str]:
+    """Markdown lines: each method of `frame` that the paper's claims are not about (not in `claimed`: other λ, low-dim z,
+    the head penalty, head pick, ...) judged against the baselines `against` by the paired rule; empty if there is none.
+
+    Differences are printed with `places` decimals (default: the game's). These rows never enter a verdict on the
+    paper: the paper's claims are checked on its own method alone.
+    """
+    claimed = set(claimed)
+    rows = []
+    for population in sorted(frame["population"].unique()):
+        p = frame[frame["population"] == population]
+        base = [lab for lab in against if lab in set(p["label"])]
+        for label in sorted(set(p["label"]) - claimed):
+            if base:
+                decimals = places if places is not None else digits(p["game"].iloc[0])
+                verdict, evidence = beats_all(p, label, base, value, within, decimals, lower_is_better)
+                rows.append([population_name(population), label_name(label), verdict, evidence])
+    if not rows:
+        return []
+    return [
+        "",
+        "### Variants of ours not checked against the paper (other λ, low-dim z, head penalty, head pick, ...)",
+        "",
+        "Judged by the same paired rule as the paper's claims; they never change a verdict on the paper, which is checked on ours λ=0.5 alone.",
+        "",
+        md_table(["population", "method", question, "evidence (paired differences over seeds)"], rows),
+        "",
+    ]
+
+
+def claims_block(topic: str, claims: Iterable[Any], checks: list[ClaimCheck], rule: str) -> list[str]:
+    """Markdown lines: each of the paper's `claims` on `topic` with the table of its `checks` (none if unchecked), after the `rule` that judged them."""
     if not checks:
         return []
-    lines = ["", f"### The paper's claims on {topic}, checked", ""]
+    lines = ["", f"### The paper's claims on {topic}, checked", "", rule, ""]
     for claim in claims:
         mine = [c for c in checks if c.claim.key == claim.key]
         if mine:

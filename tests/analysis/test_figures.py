@@ -44,14 +44,47 @@ def curves() -> pd.DataFrame:
 
 
 def test_adaptation_curves(curves: pd.DataFrame, tmp_path: Path) -> None:
-    fig = figures.adaptation_curves(curves, panels=["bandit-s2-hand", "bandit-s3-hand"])
+    fig = figures.adaptation_curves(curves, panels=["bandit-s2-hand", "bandit-s3-hand"], note="Bands: n = 2 seeds")
     axes = [ax for ax in fig.axes if ax.get_visible()]
     assert len(axes) == 2
     for ax in axes:
         assert len(ax.get_lines()) == 2  # one line per method
         assert sum(isinstance(c, PolyCollection) for c in ax.collections) == 2  # one band per method (2 seeds)
+        ours, agg = sorted(ax.get_lines(), key=lambda line: line.get_label() != "ours λ=0.5")
+        assert ours.get_zorder() > agg.get_zorder() and ours.get_linewidth() > agg.get_linewidth()  # the paper's method on top
     assert [ax.get_title() for ax in axes] == ["Arms 2", "Arms 3"]
+    assert [t.get_text() for t in fig.texts] == ["Bands: n = 2 seeds"]
     check_saved(fig, tmp_path, "adapt")
+
+
+def test_every_method_has_its_own_colour_and_line_style() -> None:
+    styles = [figures.LABEL_STYLES[label] for label in figures.LABEL_ORDER]
+    colours = [c for c, _ in styles]
+    assert len(set(colours)) == len(colours)
+    dashed = [str(style) for label, (_, style) in figures.LABEL_STYLES.items() if style != "-"]
+    assert len(set(dashed)) == len(dashed)  # solid lines only for the paper's method, the baselines and the oracle
+    assert figures.colour(figures.PAPER_METHOD) == "#D55E00" and figures.colour("unknown") == figures.OTHER_STYLE[0]
+
+
+def test_the_legend_stays_inside_the_figure_width() -> None:
+    # One narrow panel and all twelve methods, some with long names: the legend takes fewer columns until it fits.
+    rows = [
+        {"game": "bandit", "population": "bandit-s2-hand", "label": label, "run": "r", "seed": 0, "partner": "p", "steps": step, "mean_return": 0.5}
+        for label in figures.LABEL_ORDER
+        for step in (0, 16)
+    ]
+    fig = figures.adaptation_curves(pd.DataFrame(rows))
+    (legend,) = fig.legends
+    box = legend.get_window_extent(fig.canvas.get_renderer())
+    assert box.x0 >= fig.bbox.x0 and box.x1 <= fig.bbox.x1
+    assert len(legend.get_texts()) == len(figures.LABEL_ORDER)
+
+
+def test_band_caption_names_the_interval_and_its_n() -> None:
+    df = pd.DataFrame({"population": "p", "label": ["a"] * 3 + ["b"] * 2, "seed": [0, 1, 2, 0, 1]})
+    assert figures.band_caption(df) == "Bands: 95% t-interval over seeds (each seed averaged over its test partners first), n = 2–3 seeds per method."
+    one = figures.band_caption(df[df["seed"] == 0], "Error bars", averaged=None)
+    assert one == "Error bars: 95% t-interval over seeds, n = 1 seed per method; no band where n = 1."
 
 
 def test_training_curves(tmp_path: Path) -> None:
@@ -69,18 +102,24 @@ def test_training_curves(tmp_path: Path) -> None:
 
 
 def test_marginal_bars(tmp_path: Path) -> None:
+    # Arms 2 has three methods, Blocks only two: no empty slot is drawn for the one not run there.
     df = pd.DataFrame(
         [
             {"population": pop, "label": label, "seed": s, "distance": d + 0.01 * s}
-            for pop in ("bandit-s2-hand", "blocks-perm")
-            for label, d in (("modular-lam0", 0.5), ("modular-lam0.5", 0.05), ("agg", 1.0))
+            for pop, methods in (("bandit-s2-hand", ("modular-lam0", "modular-lam0.5", "agg")), ("blocks-perm", ("modular-lam0.5", "agg")))
+            for label, d in zip(methods, (0.5, 0.05, 1.0) if len(methods) == 3 else (0.05, 1.0))
             for s in (0, 1)
         ]
     )
     fig = figures.marginal_bars(df, paper={("bandit-s2-hand", "modular-lam0.5"): 0.02, ("blocks-perm", "modular-lam0.5"): 0.10})
     ax = fig.axes[0]
-    assert len(bars(ax)) == 6  # 2 populations x 3 methods
-    assert crosses(ax) == 2
+    assert len(bars(ax)) == 5 and crosses(ax) == 2
+    blocks = sorted(b.get_x() + b.get_width() / 2 for b in bars(ax) if b.get_x() > 0.5)
+    width = bars(ax)[0].get_width() / 0.95
+    assert blocks == pytest.approx([1 - width / 2, 1 + width / 2])  # centred on its tick
+    # Each bar's mean over its two seeds (d, d + 0.01) is printed on it.
+    assert sorted(t.get_text() for t in ax.texts) == ["0.055", "0.055", "0.505", "1.005", "1.005"]
+    assert ax.get_ylim()[0] == 0.0
     check_saved(fig, tmp_path, "marginals")
 
 

@@ -10,7 +10,7 @@ import pytest
 
 from analysis.report import build_report
 from analysis.report.sections.status import trained_steps
-from analysis.report.verdicts import compare, overall_verdict
+from analysis.report.verdicts import CONTRADICTED, NOT_SHOWN, SUPPORTED, VERDICTS, ClaimCheck, Difference, all_hold
 
 FIXTURE = Path(__file__).parent / "fixtures" / "repro"
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
@@ -45,48 +45,59 @@ def test_status_names_the_env_steps_each_ego_trained_for(text: str) -> None:
 
 
 def test_zeroshot_numbers_and_flags(text: str) -> None:
-    # ours λ=0.5 on Arms 1: exact returns 0.27873, 0.30279, 0.29955, 0.30089 -> mean 0.29549,
-    # sd 0.01125, half-width 3.182 * 0.01125 / 2 = 0.01790 -> [0.2776, 0.3134]; the paper's 0.99 is outside.
-    assert "| Arms 1 | ours λ=0.5 | 0.99 | 0.295 [0.278, 0.313] (n=4) | **differs**: ours lower by 0.695 |" in text
-    # BaselineModular: 0.14514, 0.15091, 0.11426, 0.10625 -> 0.129 [0.094, 0.164]; the paper's 0.30 is outside.
-    assert "| Arms 1 | BaselineModular | 0.3 | 0.129 [0.094, 0.164] (n=4) | **differs**: ours lower by 0.171 |" in text
-    assert "| Arms 1 | supported | ours λ=0.5 0.295 vs BaselineModular 0.129 |" in text
+    # ours λ=0.5 on Arms 1: one seed, exact returns 0.27873, 0.30279, 0.29955, 0.30089 with its 4 test partners
+    # -> 0.29549 and no interval (the four partners share one trained ego); the paper's 0.99 is 0.695 away.
+    assert "| Arms 1 | ours λ=0.5 | 0.99 | 0.295 (n=1, no interval) | **differs** (one seed): ours lower by 0.695 |" in text
+    # BaselineModular: 0.14514, 0.15091, 0.11426, 0.10625 -> 0.12914, one seed.
+    assert "| Arms 1 | BaselineModular | 0.3 | 0.129 (n=1, no interval) | **differs** (one seed): ours lower by 0.171 |" in text
+    # Paired on the seed's four partners: 0.29549 - 0.12914 = +0.166, one seed: not shown.
+    assert "| Arms 1 | not shown | ours λ=0.5 − BaselineModular +0.166 (n=1, no interval) |" in text
 
 
 def test_adaptation_auc_row(text: str) -> None:
     # Exact returns at steps 0, 16, 32, 48, 64: 0.4647, 0.5509, 0.6729, 0.7732, 0.8366 -> AUC 0.660.
-    assert "| Arms 2 | ours λ=0.5 | 5 | 64 | 0.465 (n=1, no interval) | 0.837 (n=1, no interval) | 0.660 (n=1, no interval) | exact |" in text
-    assert "| Arms 2 | contradicted | best regularised: ours λ=0.5 AUC 0.660; BaselineAgg 0.825; not above BaselineAgg |" in text
+    assert "| Arms 2 | ours λ=0.5 | 5 | 64 | 1 | 0.465 (n=1, no interval) | 0.837 (n=1, no interval) | 0.660 (n=1, no interval) | exact |" in text
+    # BaselineAgg: 0.7218, 0.8645, 0.7068, 0.8681, 0.9621 -> 0.8247; 0.6597 - 0.8247 = -0.165 on one seed: not shown.
+    assert "| Arms 2 | not shown | AUC ours λ=0.5 − BaselineAgg -0.165 (n=1, no interval) |" in text
 
 
 @pytest.mark.parametrize(
-    ("a", "b", "outcome"),
+    ("lo", "hi", "verdict"),
     [
-        ((0.9, 0.85, 0.95), (0.7, 0.6, 0.8), "clear"),
-        ((0.9, 0.85, 0.95), (0.88, 0.8, 0.96), "mean"),
-        ((0.924, 0.916, 0.932), (0.928, 0.906, 0.950), "tie"),  # the bandit Arms 3 numbers: a lower mean, overlapping
-        ((0.7, 0.6, 0.8), (0.9, 0.85, 0.95), "no"),
-        ((0.66, float("nan"), float("nan")), (0.82, float("nan"), float("nan")), "no"),  # one run each: nothing to overlap
+        (0.004, 0.020, SUPPORTED),
+        (-0.020, -0.004, CONTRADICTED),
+        (-0.004, 0.020, NOT_SHOWN),  # the bandit Arms 3 case: a higher or lower mean inside an interval that holds 0
+        (0.0, 0.02, NOT_SHOWN),  # "the whole interval above 0": touching 0 is not enough
+        (0.1, 0.1, SUPPORTED),  # identical seeds: a zero-width interval
+        (float("nan"), float("nan"), NOT_SHOWN),  # one seed
     ],
 )
-def test_better_tells_a_tie_inside_overlapping_intervals_from_a_loss(a, b, outcome) -> None:
-    assert compare(a, b) == outcome
+def test_a_claim_is_supported_only_when_the_whole_interval_is_above_zero(lo, hi, verdict) -> None:
+    assert Difference("A", "B", (lo + hi) / 2 if hi == hi else 0.1, lo, hi, 3).verdict == verdict
 
 
 @pytest.mark.parametrize(
-    ("outcomes", "verdict"),
+    ("verdicts", "overall"),
     [
-        (["clear", "clear"], "supported"),
-        (["clear", "mean"], "supported (intervals overlap)"),
-        (["clear", "tie"], "not shown (intervals overlap)"),
-        (["tie", "no"], "contradicted"),
+        ([SUPPORTED, SUPPORTED], SUPPORTED),
+        ([SUPPORTED, NOT_SHOWN], NOT_SHOWN),
+        ([NOT_SHOWN, CONTRADICTED, SUPPORTED], CONTRADICTED),
+        ([], NOT_SHOWN),
     ],
 )
-def test_verdict_counts_a_tie_as_not_shown_and_a_loss_as_contradicted(outcomes, verdict) -> None:
-    assert overall_verdict(outcomes) == verdict
+def test_a_beats_every_b_needs_every_difference(verdicts, overall) -> None:
+    assert all_hold(verdicts) == overall
+
+
+def test_a_claim_gets_one_of_three_verdicts() -> None:
+    assert VERDICTS == ("supported", "not shown", "contradicted")
+    with pytest.raises(ValueError, match="not one of"):
+        ClaimCheck(claim=None, scope="x", verdict="supported (intervals overlap)", evidence="")  # type: ignore[arg-type]
 
 
 def test_user_study_section(text: str) -> None:
+    # Test-C - Test-B per pair: 11 pairs +1, 12 pairs 0: mean 0.4783, sd 0.5108, half-width t(0.975, 22) 2.0739 * 0.5108 / sqrt(23) = 0.2209.
+    assert "| supported | Test-C 0.957, Test-B 0.478; Test-C − Test-B +0.478 [+0.257, +0.699] (n=23) |" in text
     assert "| Train-A | 22/23 = 0.957 ± 0.043 | 0.9545 ± 0.044 | 21/22 = 0.9545 ± 0.0444 | no | yes |" in text
     assert "| Test-A | 21/23 = 0.913 ± 0.060 | 1 ± 0 | 22/22 = 1.0000 ± 0.0000 | no | yes |" in text
     assert "Under it the table gives every bar and error bar of the paper's figure" in text
@@ -96,7 +107,7 @@ def test_user_study_section(text: str) -> None:
 def test_differences_and_absences_are_explained(text: str) -> None:
     summary = text.split("## Where ours differs from the paper, and why")[1].split("## Adapting")[0]
     assert "quick plan" in summary
-    assert "ours 0.295 [0.278, 0.313] (n=4), ours is worse." in summary  # zero-shot Arms 1 vs the paper's 0.99
+    assert "ours 0.295 (n=1, no interval), ours is worse." in summary  # zero-shot Arms 1 vs the paper's 0.99
     assert "the trained ego is under-trained: 0.861 of a possible 1" in summary  # eval.json mean over 4 partners
     assert "blocks: no folder under the root" in summary and "hanabi: no folder under the root" in summary
     assert "fig:armsexp: panel(s) Arms 3, Arms 4, Arms User Study absent" in summary
@@ -127,11 +138,14 @@ def write_zeroshot(root: Path) -> None:
 def test_paper_inside_and_outside_our_interval(tmp_path: Path) -> None:
     write_zeroshot(tmp_path / "repro")
     text = build_report(tmp_path / "repro", tmp_path / "out").read_text()
-    # 12 values 0.86..0.91 (mean 0.885, sd 0.01446, half-width 2.201 * 0.01446 / sqrt(12) = 0.00919): 0.89 is inside.
-    assert "| Arms 2 | ours λ=0.5 | 0.89 | 0.885 [0.876, 0.894] (n=12) | paper inside our 95% CI |" in text
+    # Seed means over the 4 partners 0.875, 0.885, 0.895: mean 0.885, sd 0.01, half-width 4.3027 * 0.01 / sqrt(3) = 0.0248
+    # (n = 3 seeds, not the 12 curves): 0.89 is inside.
+    assert "| Arms 2 | ours λ=0.5 | 0.89 | 0.885 [0.860, 0.910] (n=3) | paper inside our 95% CI |" in text
     # All twelve 0.2: a zero-width interval, and the paper's 0.55 outside it with no cause visible in the data.
-    assert "| Arms 2 | BaselineModular | 0.55 | 0.200 [0.200, 0.200] (n=12) | **differs**: ours lower by 0.350 |" in text
-    assert "(n=12), ours is worse. Why: no cause visible in the data" in text
+    assert "| Arms 2 | BaselineModular | 0.55 | 0.200 [0.200, 0.200] (n=3) | **differs**: ours lower by 0.350 |" in text
+    assert "(n=3), ours is worse. Why: no cause visible in the data" in text
+    # Paired per seed: 0.675, 0.685, 0.695 -> 0.685 with the same half-width 0.0248: supported.
+    assert "| Arms 2 | supported | ours λ=0.5 − BaselineModular +0.685 [+0.660, +0.710] (n=3) |" in text
     assert "stage(s) not finished: selfplay, train, adapt, zeroshot, marginals" in text
     assert "No adaptation curves" in text and "No marginals.csv found." in text
 
@@ -150,7 +164,9 @@ def test_methods_beyond_the_paper_are_listed_but_left_out_of_its_claims(tmp_path
     (game / "marginals.csv").write_text("\n".join(rows) + "\n")
     text = build_report(tmp_path / "repro", tmp_path / "out").read_text()
     assert "| Blocks (hand-designed) | ours λ=0.5 + head penalty | — | 0.020 [0.020, 0.020] (n=3) |" in text
-    assert "| Blocks (hand-designed) | supported | ours λ=0.5 0.100, BaselineAgg 1.000 |" in text
+    # Distances paired on the seed: BaselineAgg - ours = 0.9 on each of the 3 seeds.
+    assert "| Blocks (hand-designed) | supported | distance BaselineAgg − ours λ=0.5 +0.900 [+0.900, +0.900] (n=3) |" in text
+    assert "| Blocks (hand-designed) | ours λ=0.5 + head penalty | supported | BaselineAgg − ours λ=0.5 + head penalty +0.980 [+0.980, +0.980] (n=3) |" in text
     assert "ours λ=0.5 + head penalty (`modular-lam0.5-hl0.01`) is not in the paper" in text
 
 
@@ -158,8 +174,8 @@ def test_extensions_are_judged_against_the_baselines_apart_from_the_papers_claim
     game = tmp_path / "repro" / "blocks"
     (game / "adaptation").mkdir(parents=True)
     (game / "plan.json").write_text('{"game": "blocks", "seeds": [0, 1, 2], "quick": false}')
-    # Flat curves (AUC = the return), six per method: three at value - 0.1, three at value + 0.1.
-    # Mean = value, sd = 0.10954, half-width 2.5706 * 0.10954 / sqrt(6) = 0.115.
+    # Flat curves (AUC = the return), three seeds x two partners per method: value - 0.1 with sp06, value + 0.1 with sp07,
+    # so each seed's mean is the value and every interval has zero width.
     methods = (("modular-lam0.5", "modular", 14.5), ("agg", "agg", 15.0), ("oracle", "oracle", 15.5), ("modular-lam0.5-pick", "modular", 16.0))
     for label, method, value in methods:
         rows = ["run,method,lam,z_dim,seed,partner,steps,mean_return,stderr,exact_return"]
@@ -168,13 +184,61 @@ def test_extensions_are_judged_against_the_baselines_apart_from_the_papers_claim
             rows += [f"runs/blocks-selfplay__{label}/T{i // 2},{method},0.5,80,{i // 2},sp0{6 + i % 2},{step},{r},0.1," for step in (0, 640)]
         (game / "adaptation" / f"blocks-selfplay__{label}.csv").write_text("\n".join(rows) + "\n")
     text = build_report(tmp_path / "repro", tmp_path / "out").read_text()
-    assert "| Blocks (self-play) | contradicted | best regularised: ours λ=0.5 AUC 14.500; BaselineAgg 15.000; not above BaselineAgg |" in text
-    assert (
-        "| Blocks (self-play) | ours λ=0.5, adapting from a picked head | supported | AUC 16.00 [15.89, 16.11] (n=6); "
-        "BaselineAgg 15.00 [14.89, 15.11] (n=6) |"
-    ) in text
-    assert "| Blocks (self-play) | supported | oracle AUC 15.500; no method above it |" in text  # the extension is not the paper's
+    assert "| Blocks (self-play) | contradicted | AUC ours λ=0.5 − BaselineAgg -0.50 [-0.50, -0.50] (n=3) |" in text
+    assert "| Blocks (self-play) | ours λ=0.5, adapting from a picked head | supported | ours λ=0.5, adapting from a picked head − BaselineAgg +1.00 [+1.00, +1.00] (n=3) |" in text
+    # The oracle claim is about the paper's methods: the picked-head variant above it does not count.
+    assert "| Blocks (self-play) | supported | AUC oracle marginals − ours λ=0.5 +1.00 [+1.00, +1.00] (n=3); oracle marginals − BaselineAgg +0.50 [+0.50, +0.50] (n=3) |" in text
     assert "(`modular-lam0.5-pick`) is not in the paper" in text
+    assert "| Blocks (self-play) | BaselineAgg | 2 | 640 | 2 | 15.00 [15.00, 15.00] (n=3) |" in text  # 2 test partners, 3 seeds
+
+
+def write_bandit_adaptation(root: Path) -> None:
+    """Flat adaptation curves (AUC = the value) of a bandit reproduction: 3 seeds x 2 test partners per method.
+
+    Arms 2: seed levels 0.70, 0.80, 0.90 (partners at -0.01 and +0.01). Ours λ=0.5 is BaselineAgg + 0.02 on every
+    (seed, partner); ours minus MAML is +0.05, -0.01, +0.02 by seed; λ=0.3 is BaselineAgg + 0.10. Arms 3: ours λ=0.5
+    0.10 below its Arms 2 values, and no baseline.
+    """
+    game = root / "bandit"
+    (game / "adaptation").mkdir(parents=True)
+    (game / "plan.json").write_text('{"game": "bandit", "seeds": [0, 1, 2], "quick": false}')
+    levels = (0.70, 0.80, 0.90)
+    methods = {
+        ("bandit-s2-hand", "agg", "agg"): (0.0, 0.0, 0.0),
+        ("bandit-s2-hand", "modular-lam0.5", "modular"): (0.02, 0.02, 0.02),
+        ("bandit-s2-hand", "maml", "maml"): (-0.03, 0.03, 0.0),
+        ("bandit-s2-hand", "modular-lam0.3", "modular"): (0.10, 0.10, 0.10),
+        ("bandit-s3-hand", "modular-lam0.5", "modular"): (-0.08, -0.08, -0.08),
+    }
+    for (population, label, method), offsets in methods.items():
+        rows = ["run,method,lam,z_dim,seed,partner,steps,mean_return,stderr,exact_return"]
+        for seed, (level, offset) in enumerate(zip(levels, offsets)):
+            for k, spread in enumerate((-0.01, 0.01)):
+                v = level + offset + spread
+                rows += [f"runs/{population}__{label}/T{seed},{method},0.5,30,{seed},hand-test-{k},{step},{v},0.01,{v}" for step in (0, 16)]
+        (game / "adaptation" / f"{population}__{label}.csv").write_text("\n".join(rows) + "\n")
+
+
+def test_adaptation_claims_are_paired_over_seeds_on_the_papers_method(tmp_path: Path) -> None:
+    write_bandit_adaptation(tmp_path / "repro")
+    text = build_report(tmp_path / "repro", tmp_path / "out").read_text()
+    # Seed-level AUC of ours: seed means 0.72, 0.82, 0.92 -> 0.820, half-width 4.3027 * 0.1 / sqrt(3) = 0.2484.
+    assert "| Arms 2 | ours λ=0.5 | 2 | 16 | 2 | 0.820 [0.572, 1.068] (n=3) | 0.820 [0.572, 1.068] (n=3) | 0.820 [0.572, 1.068] (n=3) | exact |" in text
+    # Ours - BaselineAgg: +0.02 on every unit (supported although the seed-level intervals overlap widely);
+    # ours - MAML by seed +0.05, -0.01, +0.02: mean 0.02, sd 0.03, half-width 4.3027 * 0.03 / sqrt(3) = 0.0745: not shown.
+    assert (
+        "| Arms 2 | not shown | AUC ours λ=0.5 − BaselineAgg +0.020 [+0.020, +0.020] (n=3); "
+        "ours λ=0.5 − First-Order MAML +0.020 [-0.055, +0.095] (n=3) |"
+    ) in text
+    # λ=0.3 beats both baselines but is a variant: it has its own table and does not make the paper's claim supported.
+    assert "| Arms 2 | ours λ=0.3 | supported | ours λ=0.3 − BaselineAgg +0.100 [+0.100, +0.100] (n=3); ours λ=0.3 − First-Order MAML +0.100" in text
+    assert "| Arms 3 | not shown | needs ours λ=0.5 and a baseline; have ours λ=0.5 |" in text
+    # Arms 2 against Arms 3 share no partners: Welch over seed means 0.72, 0.82, 0.92 and 0.62, 0.72, 0.82:
+    # difference 0.10, se sqrt(2 * 0.01 / 3) = 0.0816, df 4, t 2.7764 -> half-width 0.2267.
+    assert "| ours λ=0.5, hand partners | not shown | AUC Arms 2 − Arms 3 +0.100 [-0.127, +0.327] (n=3) |" in text
+    summary = text.split("## Where ours differs from the paper, and why")[1].split("## Adapting")[0]
+    # The three above, not shown, and the user study's two claims, supported: the tallies count exactly the verdicts.
+    assert "Claims checked: 5 (2 supported, 3 not shown, 0 contradicted)" in summary
 
 
 def test_empty_root_and_recorded_sessions(tmp_path: Path) -> None:
@@ -204,3 +268,20 @@ def test_direction_knows_that_smaller_distances_are_better() -> None:
     assert distance.differs and distance.direction == "ours is better"
     assert ret.direction == "ours is better"
     assert Comparison("zero-shot", "x", 0.55, "src", 0.465, 0.423, 0.508, 12).direction == "ours is worse"
+
+
+def test_hanabi_is_judged_against_every_baseline_present(tmp_path: Path) -> None:
+    game = tmp_path / "repro" / "hanabi"
+    (game / "adaptation").mkdir(parents=True)
+    (game / "plan.json").write_text('{"game": "hanabi", "seeds": [0, 1], "quick": false}')
+    # Two seeds x one partner, flat curves: ours 3.0 and 3.2, each baseline 1.0 lower on both seeds.
+    for label, method, drop in (("modular-lam0.5", "modular", 0.0), ("agg", "agg", 1.0), ("no_task_logits", "no_task_logits", 1.0), ("maml", "maml", 1.0)):
+        rows = ["run,method,lam,z_dim,seed,partner,steps,mean_return,stderr,exact_return"]
+        rows += [f"runs/hanabi-selfplay__{label}/T{s},{method},0.5,,{s},sp04,{step},{3.0 + 0.2 * s - drop},0.1," for s in (0, 1) for step in (0, 1280)]
+        (game / "adaptation" / f"hanabi-selfplay__{label}.csv").write_text("\n".join(rows) + "\n")
+    text = build_report(tmp_path / "repro", tmp_path / "out").read_text()
+    assert (
+        "| Hanabi (self-play) | supported | AUC ours λ=0.5 − BaselineAgg +1.000 [+1.000, +1.000] (n=2); "
+        "ours λ=0.5 − BaselineModular +1.000 [+1.000, +1.000] (n=2); ours λ=0.5 − First-Order MAML +1.000 [+1.000, +1.000] (n=2) |"
+    ) in text
+    assert "![adapt_blockshanabiexp](figures/adapt_blockshanabiexp.png)" in text

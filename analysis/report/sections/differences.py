@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from analysis.report.context import Context
 from analysis.report.formatting import fmt_ci
+from analysis.report.verdicts import CONTRADICTED, NOT_SHOWN, SUPPORTED
 
 
 def differences_section(ctx: Context) -> str:
@@ -11,12 +12,12 @@ def differences_section(ctx: Context) -> str:
     inside = [c for c in ctx.comparisons if c.status == "inside"]
     differ = [c for c in ctx.comparisons if c.differs]
     close = [c for c in ctx.comparisons if c.status == "no interval" and not c.differs]
+    count = {v: sum(c.verdict == v for c in ctx.claims) for v in (SUPPORTED, NOT_SHOWN, CONTRADICTED)}
     lines.append(
-        f"{len(ctx.comparisons)} paper numbers compared: {len(inside)} inside our 95% interval, {len(differ)} differ, "
-        f"{len(close)} close to a single run of ours (no interval). Claims checked: {len(ctx.claims)} "
-        f"({sum(c.verdict.startswith('supported') for c in ctx.claims)} supported, {sum(c.verdict.startswith('not shown') for c in ctx.claims)} not shown "
-        f"(a lower mean inside overlapping intervals), {sum(c.verdict == 'contradicted' for c in ctx.claims)} contradicted, "
-        f"{sum(c.verdict == 'undetermined' for c in ctx.claims)} undetermined)."
+        f"{len(ctx.comparisons)} paper numbers compared: {len(inside)} inside our seed-level 95% interval, {len(differ)} differ, "
+        f"{len(close)} close to a single seed of ours (no interval). Claims checked: {len(ctx.claims)} "
+        f"({count[SUPPORTED]} supported, {count[NOT_SHOWN]} not shown, {count[CONTRADICTED]} contradicted): a claim is supported "
+        "only when the whole 95% interval of its difference is on its side of 0, contradicted when it is wholly on the other."
     )
     if differ:
         lines += ["", "### Numbers that differ", ""]
@@ -26,9 +27,10 @@ def differences_section(ctx: Context) -> str:
                 f"- **{c.section}: {c.what}**: paper {c.paper_value:g} ({c.paper_source}); ours {fmt_ci(c.mean, c.lo, c.hi, c.n, c.digits)}, "
                 f"{c.direction}. Why: {why}."
             )
-    contradicted = [c for c in ctx.claims if c.verdict == "contradicted"]
-    not_shown = [c for c in ctx.claims if c.verdict.startswith("not shown")]
-    for title, checks in (("Claims our data contradict", contradicted), ("Claims our data do not show (a lower mean inside overlapping intervals)", not_shown)):
+    contradicted = [c for c in ctx.claims if c.verdict == CONTRADICTED]
+    not_shown = [c for c in ctx.claims if c.verdict == NOT_SHOWN]
+    titles = ("Claims our data contradict", "Claims our data do not show (an interval that contains 0, one seed, or data missing)")
+    for title, checks in zip(titles, (contradicted, not_shown)):
         if checks:
             lines += ["", f"### {title}", ""]
         for c in checks:

@@ -15,7 +15,7 @@ def training_section(ctx: Context) -> str:
         return "\n".join(lines)
     lines.append(
         "Final return of each trained ego with its training partners (eval.json: 200 episodes per partner, the exact expectation on the bandit), "
-        "mean over seeds with 95% interval; the game's maximum in brackets."
+        "averaged per seed over its training partners, then over seeds with a 95% t-interval over seeds (n = seeds); the game's maximum beside it."
     )
     lines.append("")
     rows = []
@@ -25,5 +25,6 @@ def training_section(ctx: Context) -> str:
     lines.append(md_table(["game", "population", "method", "final training return", "max"], rows))
     for game in sorted(ctx.training["game"].unique()):
         part = ctx.training[ctx.training["game"] == game]
-        lines += ["", f"Training curves, {game} (return_mean against env steps, 95% band over seeds):", "", ctx.save(figures.training_curves(part), f"training_{game}")]
+        caption = figures.band_caption(part, "Lines: return_mean against training env steps, mean over seeds; bands", averaged=None)
+        lines += ["", f"Training curves, {game}:", "", ctx.save(figures.training_curves(part), f"training_{game}", caption)]
     return "\n".join(lines)
