@@ -1,0 +1,151 @@
+"""`rllib-conv pair`: any saved module, population member or scripted partner in any seat, against any other.
+
+Each seat (its syntax: `rllib-conv pair --help`) becomes a fixed `Partner`: an ego head or
+the task module alone of a trained ego's last checkpoint (sampling its policy), a
+population member, or a scripted kind built from its parameters. The seats play
+`episodes` episodes of one game (`partners.play.episode_stream`); the result is their
+mean return, its standard error and, on the bandit, the exact expected return computed
+from the players' action probabilities (contexts uniform).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import yaml
+
+from rllib_conv import envs, partners
+from rllib_conv.common.run_folders import POPULATION_FILE, trial_folders
+from rllib_conv.envs.bandit import CollaborativeBanditEnv
+from rllib_conv.modules.multi import TASK_ID
+from rllib_conv.partners.bandit import BanditConventionPartner
+from rllib_conv.partners.base import Partner
+from rllib_conv.partners.play import play_episodes
+from rllib_conv.partners.trained import PolicyPartner
+from rllib_conv.pipelines.pair_config import PairConfig, split_seat
+from rllib_conv.training.checkpoints import last_checkpoint
+from rllib_conv.training.evaluate import ego_head_partner, load_module
+from rllib_conv.training.experiment import trial_config
+
+
+@dataclass
+class Seat:
+    """One seat's player and the game it comes from (None for scripted kinds, which fit any)."""
+
+    text: str
+    player: Partner
+    game: tuple[str, dict[str, Any]] | None
+
+
+def _task_partner(module: Any, name: str, seed: int) -> PolicyPartner:
+    """The task module alone as a sampling player (its estimate of the marginals)."""
+    return PolicyPartner(name, lambda obs, mask: module[TASK_ID].policy(obs, mask).logits, greedy=False, seed=seed)
+
+
+def _module_seat(text: str, trial: Path, module_id: str, seed: int) -> Seat:
+    exp = trial_config(trial)
+    module = load_module(last_checkpoint(trial))
+    choices = [TASK_ID, *module.head_ids()]
+    if module_id not in choices:
+        raise ValueError(f"seat {text!r}: the ego in {str(trial)!r} has no module {module_id!r}; it has {choices}")
+    player = _task_partner(module, text, seed) if module_id == TASK_ID else ego_head_partner(module, module_id, seed)
+    pop = partners.get(exp.population)
+    return Seat(text, player, (exp.env or pop.env, {**pop.env_config, **exp.env_config}))
+
+
+def seat(text: str, seed: int = 0) -> Seat:
+    """Build the player of the seat `text` (see `rllib-conv pair --help`); ValueError naming the seat."""
+    source, what = split_seat(text)
+    if source in partners.kinds():
+        try:
+            params = yaml.safe_load(what) if what else {}
+        except yaml.YAMLError as exc:
+            raise ValueError(f"seat {text!r}: the parameters are not valid YAML ({' '.join(str(exc).split())})") from None
+        if not isinstance(params, dict):
+            raise ValueError(f"seat {text!r}: the parameters must be a YAML mapping like {{arms: [0, 1]}}, got {what!r}")
+        try:
+            return Seat(text, partners.partner_from_spec({"name": text, "kind": source, "params": params}), None)
+        except TypeError as exc:  # unknown or missing constructor arguments
+            raise ValueError(f"seat {text!r}: {exc}") from None
+    path = Path(source)
+    if path.is_dir() and not (path / POPULATION_FILE).is_file():
+        trials = trial_folders(path)
+        if len(trials) > 1:
+            raise ValueError(f"seat {text!r}: {source!r} holds {len(trials)} trials; name one trial folder")
+        return _module_seat(text, trials[0], what, seed)
+    try:
+        pop = partners.get(source)
+    except ValueError:
+        raise ValueError(
+            f"seat {text!r}: {source!r} is neither a partner kind ({', '.join(partners.kinds())}), "
+            "a trained-ego trial folder, nor a population (built-in name or manifest)"
+        ) from None
+    entry = next((e for e in pop.partners if e.name == what), None)
+    if entry is None:
+        raise ValueError(f"seat {text!r}: population {pop.name!r} has no member {what!r}; it has {[e.name for e in pop.partners]}")
+    return Seat(text, entry.build(), (pop.env, pop.env_config))
+
+
+def pair_game(seats: list[Seat], env: str | None = None, env_config: dict[str, Any] | None = None) -> tuple[str, dict[str, Any]]:
+    """The game the seats play: `env` and `env_config` when given, else the one the seats that name a game agree on."""
+    named = [s.game for s in seats if s.game is not None]
+    described = "; ".join(f"{s.text!r}: {s.game[0]} {s.game[1]}" for s in seats if s.game is not None)
+    if env is None:
+        games = {g for g, _ in named}
+        if not games:
+            raise ValueError("no seat names a game (scripted kinds fit any): choose one with --env")
+        if len(games) > 1:
+            raise ValueError(f"the seats come from different games ({described}): choose one with --env")
+        env = games.pop()
+    if env_config is None:
+        configs = {repr(sorted(c.items())): c for g, c in named if g == env}
+        if len(configs) > 1:
+            raise ValueError(f"the seats come from different {env} settings ({described}): choose one with --env-config")
+        env_config = next(iter(configs.values()), {})
+    return env, env_config
+
+
+def _probs(player: Partner, obs: np.ndarray, mask: np.ndarray) -> np.ndarray | None:
+    """A bandit player's action probabilities [contexts, arms]; None when they cannot be known exactly."""
+    if isinstance(player, PolicyPartner):
+        p = player.probs(obs, mask)
+        return np.eye(p.shape[1])[p.argmax(axis=1)] if player.greedy else p
+    if isinstance(player, BanditConventionPartner):  # deterministic: its one arm per context
+        return np.eye(mask.shape[1])[player.act_batch(obs, mask)]
+    return None
+
+
+def bandit_exact(env: CollaborativeBanditEnv, players: list[Partner]) -> float:
+    """The exact expected return of two bandit players (NaN unless both policies are known exactly)."""
+    obs = np.eye(env.num_contexts, dtype=np.float32)
+    mask = np.ones((env.num_contexts, env.num_arms), dtype=np.int8)
+    probs = [_probs(p, obs, mask) for p in players]
+    if any(p is None for p in probs):
+        return math.nan
+    return float(np.mean(np.sum(probs[0] * probs[1] * env.prizes, axis=1)))
+
+
+def pair(cfg: PairConfig) -> pd.DataFrame:
+    """Play the seats of `cfg` together; one row: the game, seats, mean return, stderr and (bandit) exact return."""
+    seats = [seat(text, cfg.seed) for text in cfg.seats]
+    game, env_config = pair_game(seats, cfg.env, cfg.env_config)
+    env = envs.make(game, **env_config)
+    agents = list(env.possible_agents)
+    if len(seats) != len(agents):
+        raise ValueError(f"{game} {env_config} has {len(agents)} seats ({', '.join(agents)}), got {len(seats)}")
+    players = [s.player for s in seats]
+    try:
+        scores = play_episodes(env, dict(zip(agents, players)), cfg.episodes, cfg.seed)
+    except RuntimeError as exc:  # torch: a module built for another observation or action size
+        raise ValueError(f"the seats do not fit {game} {env_config}: {' '.join(str(exc).split())}") from None
+    exact = bandit_exact(env, players) if isinstance(env, CollaborativeBanditEnv) else math.nan
+    stderr = float(scores.std(ddof=1) / np.sqrt(len(scores))) if len(scores) > 1 else 0.0
+    row = {"env": game, "env_config": str(env_config), **{f"seat_{i}": s.text for i, s in enumerate(seats)}}
+    row |= {"episodes": cfg.episodes, "seed": cfg.seed, "mean_return": float(scores.mean()), "stderr": stderr, "exact_return": exact}
+    return pd.DataFrame([row])
+
