@@ -90,6 +90,15 @@ def save(fig: Figure, path_stem: str | Path, dpi: int = 130) -> tuple[Path, Path
     return png, pdf
 
 
+def save_png(fig: Figure, png: str | Path, dpi: int = 130) -> Path:
+    """Write `fig` as the one PNG `png` (folders created, the file overwritten), close it, and return the path."""
+    png = Path(png)
+    png.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(png, dpi=dpi, bbox_inches="tight")
+    plt.close(fig)
+    return png
+
+
 def _grid(n: int, ncols: int, size: tuple[float, float] = (4.0, 3.0)) -> tuple[Figure, list[plt.Axes]]:
     ncols = max(1, min(ncols, n))
     nrows = max(1, -(-n // ncols))
@@ -261,6 +270,69 @@ def zeroshot_bars(zeroshot: pd.DataFrame, paper: Mapping[tuple[str, str], float]
         ax.set_ylabel("zero-shot return")
         ax.set_title(game, fontsize=10)
     _legend_below(fig, axes, note)
+    return fig
+
+
+def partner_curves(training: pd.DataFrame, ncols: int = 4, note: str = "") -> Figure:
+    """Learning curves per training partner: one panel per trial, one line per `return/<partner>` column against env steps.
+
+    `training` is `loaders.load_trial_curves`'s frame (one row per trial and iteration);
+    `return_mean` is drawn thick and black. Partners are coloured along viridis (perceptually
+    uniform, readable in grey and by colour-blind readers); `note` is printed under the legend.
+    Returns the Figure.
+    """
+    runs = sorted(training["run"].unique()) if not training.empty else []
+    fig, axes = _grid(max(1, len(runs)), ncols)
+    partners = sorted(c for c in training.columns if c.startswith("return/"))
+    shades = matplotlib.colormaps["viridis"](np.linspace(0.0, 0.9, max(1, len(partners))))
+    for ax, run in zip(axes, runs):
+        part = training[training["run"] == run].sort_values("steps")
+        for column, shade in zip(partners, shades):
+            if part[column].notna().any():
+                ax.plot(part["steps"], part[column], color=shade, lw=1.0, label=column.split("/", 1)[1])
+        if "return_mean" in part:
+            ax.plot(part["steps"], part["return_mean"], color="black", lw=2.2, label="mean over partners", zorder=4)
+        first = part.iloc[0]
+        lam = f" λ={first['lam']:g}" if pd.notna(first.get("lam")) else ""
+        ax.set_title(f"{population_name(str(first['population']))} · {first['method']}{lam} · seed {first['seed']}", fontsize=9)
+        ax.set_xlabel("training env steps")
+        ax.set_ylabel("return")
+        ax.grid(alpha=0.3)
+    _legend_below(fig, axes, note)
+    return fig
+
+
+def sweep_heatmap(tables: Mapping[str, pd.DataFrame]) -> Figure:
+    """One heat map per metric of a sweep: `tables` maps a metric's name to its table (rows and columns: swept values).
+
+    The tables are `analysis.plots.sweep_table`'s (mean over seeds of each trial's final value).
+    Returns the Figure.
+    """
+    fig, axes = _grid(max(1, len(tables)), len(tables) or 1, size=(max(4.0, 0.9 * max([t.shape[1] for t in tables.values()] or [1]) + 2.5), 3.4))
+    for ax, (metric, table) in zip(axes, tables.items()):
+        _heatmap(ax, table.to_numpy(dtype=float), [str(i) for i in table.index], [str(c) for c in table.columns], fig, f"final {metric} (mean over seeds)")
+        ax.set_ylabel(table.index.name or "")
+        ax.set_xlabel(table.columns.name or "")
+        ax.set_title(metric, fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def partner_bars(zeroshot: pd.DataFrame, note: str = "") -> Figure:
+    """Zero-shot return per test partner and method: one group of bars per partner, one colour per method.
+
+    `zeroshot` is `loaders.read_stage_csv`'s frame of a zero-shot CSV. Each bar is the mean
+    over seeds (exact return where known) with its 95% error bar over seeds; `note` is printed
+    under the legend. Returns the Figure.
+    """
+    data = with_value(zeroshot)
+    summary = seed_summary(data, ["partner", "label"], "value").rename(columns={"partner": "group"})
+    groups = sorted(summary["group"].unique())
+    fig, ax = plt.subplots(figsize=(max(5.0, 1.2 * len(groups) + 2.5), 3.4))
+    _grouped_bars(ax, summary, groups, None, "")
+    ax.set_xlabel("test partner")
+    ax.set_ylabel("zero-shot return")
+    _legend_below(fig, [ax], note)
     return fig
 
 

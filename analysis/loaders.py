@@ -21,6 +21,7 @@ from typing import Any, Iterable
 
 import pandas as pd
 
+from rllib_conv.common import methods
 from rllib_conv.common.resources import user_study_csv
 from rllib_conv.common.run_folders import (
     ADAPTATION_DIR,
@@ -198,7 +199,50 @@ def load_sweep(experiment: str | Path) -> pd.DataFrame:
     trials = sorted(p.parent for p in Path(experiment).glob(f"*/{CONFIG_FILE}"))
     if not trials:
         raise ValueError(f"{str(experiment)!r} holds no trained-ego trial (no */config.yaml); expected a sweep's STORAGE/NAME folder")
-    return _concat([_trial_curve(t) for t in trials], [*TRIAL_COLUMNS, "steps", "training_iteration"])
+    return load_trial_curves(trials)
+
+
+def load_trial_curves(trials: Iterable[str | Path]) -> pd.DataFrame:
+    """Training curves of the given trial folders, one row per trial and iteration, with the columns of `load_training`."""
+    return _concat([_trial_curve(Path(t)) for t in trials], [*TRIAL_COLUMNS, "steps", "training_iteration"])
+
+
+def _flatten(config: dict[str, Any], prefix: str = "") -> dict[str, Any]:
+    """A nested config as one level of dotted keys (`ppo.lr`); lists become their text, so that they compare."""
+    out: dict[str, Any] = {}
+    for key, value in config.items():
+        name = f"{prefix}{key}"
+        if isinstance(value, dict) and value:
+            out.update(_flatten(value, f"{name}."))
+        else:
+            out[name] = str(value) if isinstance(value, (list, dict)) else value
+    return out
+
+
+CONFIG_PREFIX = "config/"
+
+
+def load_trial_summaries(trials: Iterable[str | Path]) -> pd.DataFrame:
+    """One row per trial folder: `run`; its config.yaml flattened to dotted keys under `CONFIG_PREFIX` (`config/lam`,
+    `config/ppo.lr`, ...); the metrics of its last logged iteration (`return_mean`, `env_steps`, ...); and its
+    eval.json entries (`eval/marginal_distance/paper`, ...).
+
+    What a sweep's heat map is drawn from; a trial with no log yet has only its config.
+    """
+    rows = []
+    for trial in map(Path, trials):
+        row: dict[str, Any] = {"run": str(trial), **{CONFIG_PREFIX + k: v for k, v in _flatten(read_trial_config(trial)).items()}}
+        progress = _read_progress(trial)
+        if not progress.empty:
+            last = progress.sort_values("training_iteration").iloc[-1] if "training_iteration" in progress else progress.iloc[-1]
+            row.update(last.to_dict())
+        if (trial / EVAL_FILE).is_file():
+            try:
+                row.update(json.loads((trial / EVAL_FILE).read_text()))
+            except json.JSONDecodeError:
+                pass  # being written by a running trial
+        rows.append(row)
+    return pd.DataFrame(rows)
 
 
 def _trial_curve(trial: Path, game: str | None = None) -> pd.DataFrame:
@@ -257,25 +301,43 @@ def load_evals(root: str | Path) -> pd.DataFrame:
 # --- stage tables ------------------------------------------------------------------------
 
 
+def read_stage_csv(path: str | Path, game: str = "") -> pd.DataFrame:
+    """One adaptation or zero-shot CSV (`<name>.csv`) with the identifiers the loaders add: game, population, label, trial, experiment.
+
+    A reproduction names its CSVs `<population>__<label>`; any other name is the population,
+    and each row's label comes from its method (`<method>-lam<lam>` for a regularised
+    method with lam > 0, as reproduce names them; the method's name otherwise). `exact_return` is added (NaN) where the file has none.
+    """
+    path = Path(path)
+    table = pd.read_csv(path)
+    population, label = split_experiment(path.stem)
+    labels = [label] * len(table) if label else [_method_label(m, lam) for m, lam in zip(table["method"], table.get("lam", [0.0] * len(table)))]
+    table.insert(0, "label", labels)
+    table.insert(0, "population", population)
+    table.insert(0, "game", game)
+    # The run paths are absolute on the machine that ran them; the trial folder name is portable.
+    table["trial"] = [Path(str(r)).name for r in table["run"]]
+    table["experiment"] = [Path(str(r)).parent.name for r in table["run"]]
+    if "exact_return" not in table.columns:
+        table["exact_return"] = float("nan")
+    return table
+
+
+def _method_label(method: str, lam: float) -> str:
+    """A row's label from its method and lam: `modular-lam0.5` as reproduce names it for a regularised method with lam > 0, else the method."""
+    regularised = method in methods.METHODS and methods.method(method).regularised
+    return f"{method}-lam{float(lam):g}" if regularised and float(lam) > 0 else str(method)
+
+
 def _read_tables(root: str | Path, folder: str) -> list[pd.DataFrame]:
     """Every `<game>/<folder>/<population>__<label>.csv`, with game, population, label, experiment, trial columns added."""
     frames = []
     for game_dir in game_dirs(root):
         game = game_of(game_dir)
         for path in sorted((game_dir / folder).glob("*.csv")):
-            table = pd.read_csv(path)
-            if table.empty:
-                continue
-            population, label = split_experiment(path.stem)
-            table.insert(0, "label", label)
-            table.insert(0, "population", population)
-            table.insert(0, "game", game)
-            # The run paths are absolute on the machine that ran them; the trial folder name is portable.
-            table["trial"] = [Path(str(r)).name for r in table["run"]]
-            table["experiment"] = [Path(str(r)).parent.name for r in table["run"]]
-            if "exact_return" not in table.columns:
-                table["exact_return"] = float("nan")
-            frames.append(table)
+            table = read_stage_csv(path, game)
+            if not table.empty:
+                frames.append(table)
     return frames
 
 
