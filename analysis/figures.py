@@ -55,9 +55,14 @@ def ordered_labels(labels: Sequence[str]) -> list[str]:
     return known + sorted(set(labels) - set(LABEL_ORDER))
 
 
+def style(label: str) -> tuple[str, str | tuple]:
+    """The (colour, line style) of a method label."""
+    return LABEL_STYLES.get(label, OTHER_STYLE)
+
+
 def colour(label: str) -> str:
     """The plotting colour of a method label."""
-    return LABEL_STYLES.get(label, OTHER_STYLE)[0]
+    return style(label)[0]
 
 
 def band_caption(frame: pd.DataFrame, what: str = "Bands", averaged: str | None = "its test partners") -> str:
@@ -81,13 +86,11 @@ def band_caption(frame: pd.DataFrame, what: str = "Bands", averaged: str | None 
 def save(fig: Figure, path_stem: str | Path, dpi: int = 130) -> tuple[Path, Path]:
     """Write `fig` as `<path_stem>.png` and `<path_stem>.pdf` (folders created), close it, and return both paths."""
     stem = Path(path_stem)
+    pdf = stem.with_name(stem.name + ".pdf")
     stem.parent.mkdir(parents=True, exist_ok=True)
-    png, pdf = stem.with_name(stem.name + ".png"), stem.with_name(stem.name + ".pdf")
-    fig.savefig(png, dpi=dpi, bbox_inches="tight")
     # No creation date: a rebuilt report leaves unchanged figures byte-identical (no git churn).
     fig.savefig(pdf, bbox_inches="tight", metadata={"CreationDate": None})
-    plt.close(fig)
-    return png, pdf
+    return save_png(fig, stem.with_name(stem.name + ".png"), dpi), pdf
 
 
 def save_png(fig: Figure, png: str | Path, dpi: int = 130) -> Path:
@@ -136,8 +139,8 @@ def _band_plot(ax: plt.Axes, band: pd.DataFrame, x: str) -> None:
     for label in ordered_labels(band["label"].unique()):
         part = band[band["label"] == label].sort_values(x)
         ours = label == PAPER_METHOD
-        colour_, style = LABEL_STYLES.get(label, OTHER_STYLE)
-        ax.plot(part[x], part["mean"], linestyle=style, color=colour_, label=label_name(label), lw=2.6 if ours else 1.5, zorder=4 if ours else 3)
+        colour_, dashes = style(label)
+        ax.plot(part[x], part["mean"], linestyle=dashes, color=colour_, label=label_name(label), lw=2.6 if ours else 1.5, zorder=4 if ours else 3)
         has_ci = part["lo"].notna()
         if has_ci.any():
             ax.fill_between(part.loc[has_ci, x], part.loc[has_ci, "lo"], part.loc[has_ci, "hi"], color=colour_, alpha=0.25 if ours else 0.12, lw=0, zorder=2)
@@ -174,12 +177,11 @@ def adaptation_curves(
     return fig
 
 
-def training_curves(training: pd.DataFrame, metric: str = "return_mean", panels: Sequence[str] | None = None, ncols: int = 4, note: str = "") -> Figure:
+def training_curves(training: pd.DataFrame, metric: str = "return_mean", panels: Sequence[str] | None = None, ncols: int = 4) -> Figure:
     """Training return against env steps: one panel per population, one line per label, 95% band over seeds.
 
     `training` is `loaders.load_training`'s frame; `metric` one of its columns. Seeds
-    are aligned on `training_iteration`, their steps averaged; `note` is printed under the
-    legend. Returns the Figure.
+    are aligned on `training_iteration`, their steps averaged. Returns the Figure.
     """
     populations = list(panels) if panels is not None else sorted(training["population"].unique())
     fig, axes = _grid(max(1, len(populations)), ncols)
@@ -194,7 +196,7 @@ def training_curves(training: pd.DataFrame, metric: str = "return_mean", panels:
         ax.set_xlabel("training env steps")
         ax.set_ylabel(metric)
         ax.grid(alpha=0.3)
-    _legend_below(fig, axes, note)
+    _legend_below(fig, axes)
     return fig
 
 
@@ -233,13 +235,13 @@ def _grouped_bars(
     ax.grid(axis="y", alpha=0.3)
 
 
-def marginal_bars(marginals: pd.DataFrame, paper: Mapping[tuple[str, str], float] | None = None, note: str = "") -> Figure:
+def marginal_bars(marginals: pd.DataFrame, paper: Mapping[tuple[str, str], float] | None = None) -> Figure:
     """Distance between each task module and the true marginals (the paper's fig:marginals).
 
     `marginals` is `loaders.load_marginals`'s frame: bars per population (groups) and
     method label, height = mean `distance` over seeds (printed on the bar) with 95% error
     bars; only the methods run in a population get a bar. `paper` maps (population, label)
-    to the paper's value, drawn as black crosses; `note` is printed under the legend. Returns the Figure.
+    to the paper's value, drawn as black crosses. Returns the Figure.
     """
     fig, ax = plt.subplots(figsize=(max(5.0, 1.6 * max(1, marginals["population"].nunique()) + 3), 3.4))
     summary = seed_summary(marginals, ["population", "label"], "distance").rename(columns={"population": "group"})
@@ -247,18 +249,17 @@ def marginal_bars(marginals: pd.DataFrame, paper: Mapping[tuple[str, str], float
     ax.set_ylim(bottom=0.0)  # distances are non-negative; a t-interval reaching below 0 is cut there
     ax.set_ylabel("L1 distance to true marginals")
     ax.set_title("task module vs true marginals (lower is better)", fontsize=10)
-    _legend_below(fig, [ax], note)
+    _legend_below(fig, [ax])
     return fig
 
 
-def zeroshot_bars(zeroshot: pd.DataFrame, paper: Mapping[tuple[str, str], float] | None = None, note: str = "") -> Figure:
+def zeroshot_bars(zeroshot: pd.DataFrame, paper: Mapping[tuple[str, str], float] | None = None) -> Figure:
     """Zero-shot return on the new task with the test partners (the paper's fig:zeroshot).
 
     `zeroshot` is `loaders.load_zeroshot`'s frame. One panel per game (their score scales
     differ), bars per population and method label: mean over seeds (each averaged over its
     test partners) of the exact return where known, else the evaluated mean, with
-    seed-level 95% error bars; `paper` values as black crosses; `note` is printed under the
-    legend. Returns the Figure.
+    seed-level 95% error bars; `paper` values as black crosses. Returns the Figure.
     """
     games = sorted(zeroshot["game"].unique()) if not zeroshot.empty else ["(none)"]
     fig, axes = _grid(len(games), len(games), size=(5.0, 3.4))
@@ -269,17 +270,16 @@ def zeroshot_bars(zeroshot: pd.DataFrame, paper: Mapping[tuple[str, str], float]
         _grouped_bars(ax, summary, sorted(summary["group"].unique()), paper, "paper")
         ax.set_ylabel("zero-shot return")
         ax.set_title(game, fontsize=10)
-    _legend_below(fig, axes, note)
+    _legend_below(fig, axes)
     return fig
 
 
-def partner_curves(training: pd.DataFrame, ncols: int = 4, note: str = "") -> Figure:
+def partner_curves(training: pd.DataFrame, ncols: int = 4) -> Figure:
     """Learning curves per training partner: one panel per trial, one line per `return/<partner>` column against env steps.
 
     `training` is `loaders.load_trial_curves`'s frame (one row per trial and iteration);
     `return_mean` is drawn thick and black. Partners are coloured along viridis (perceptually
-    uniform, readable in grey and by colour-blind readers); `note` is printed under the legend.
-    Returns the Figure.
+    uniform, readable in grey and by colour-blind readers). Returns the Figure.
     """
     runs = sorted(training["run"].unique()) if not training.empty else []
     fig, axes = _grid(max(1, len(runs)), ncols)
@@ -298,7 +298,7 @@ def partner_curves(training: pd.DataFrame, ncols: int = 4, note: str = "") -> Fi
         ax.set_xlabel("training env steps")
         ax.set_ylabel("return")
         ax.grid(alpha=0.3)
-    _legend_below(fig, axes, note)
+    _legend_below(fig, axes)
     return fig
 
 
