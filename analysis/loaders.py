@@ -207,6 +207,10 @@ def load_trial_curves(trials: Iterable[str | Path]) -> pd.DataFrame:
     return _concat([_trial_curve(Path(t)) for t in trials], [*TRIAL_COLUMNS, "steps", "training_iteration"])
 
 
+# The columns of `load_trial_summaries` that hold a trial's config (the rest: what it logged and measured).
+CONFIG_PREFIX = "config/"
+
+
 def _flatten(config: dict[str, Any], prefix: str = "") -> dict[str, Any]:
     """A nested config as one level of dotted keys (`ppo.lr`); lists become their text, so that they compare."""
     out: dict[str, Any] = {}
@@ -217,9 +221,6 @@ def _flatten(config: dict[str, Any], prefix: str = "") -> dict[str, Any]:
         else:
             out[name] = str(value) if isinstance(value, (list, dict)) else value
     return out
-
-
-CONFIG_PREFIX = "config/"
 
 
 def load_trial_summaries(trials: Iterable[str | Path]) -> pd.DataFrame:

@@ -13,7 +13,7 @@
 - a zero-shot CSV (`<name>.csv` without one): `<name>.png`, bars per test partner and method;
 - a folder of such CSVs: each one's PNG.
 
-Bands and error bars are seed-level 95% t-intervals, and each figure says so under its legend.
+Bands and error bars are seed-level 95% t-intervals, and the figures that have them say so under their legend.
 """
 
 from __future__ import annotations
@@ -61,24 +61,22 @@ def plot_folder(path: str | Path) -> list[Path]:
 
 
 def _stage_of(csv: Path) -> str | None:
-    """'adaptation' or 'zeroshot' from a CSV's header, None for any other CSV."""
+    """'adaptation' or 'zeroshot' from a CSV's header, None for any other CSV and for one without rows (a stage that wrote nothing)."""
     try:
-        columns = set(pd.read_csv(csv, nrows=0).columns)
+        head = pd.read_csv(csv, nrows=1)
     except pd.errors.EmptyDataError:
         return None
-    if not STAGE_COLUMNS <= columns:
+    if head.empty or not STAGE_COLUMNS <= set(head.columns):
         return None
-    return "adaptation" if "steps" in columns else "zeroshot"
+    return "adaptation" if "steps" in head.columns else "zeroshot"
 
 
 def _plot_csv(csv: Path) -> Path:
     """`<name>.png` beside an adaptation or zero-shot CSV."""
     stage = _stage_of(csv) if csv.suffix == ".csv" else None
     if stage is None:
-        raise ValueError(f"{str(csv)!r} is not an adaptation or zero-shot CSV (columns {sorted(STAGE_COLUMNS)}, plus steps for adaptation); expected {EXPECTED}")
+        raise ValueError(f"{str(csv)!r} is not an adaptation or zero-shot CSV with rows (columns {sorted(STAGE_COLUMNS)}, plus steps for adaptation); expected {EXPECTED}")
     table = loaders.read_stage_csv(csv)
-    if table.empty:
-        raise ValueError(f"{str(csv)!r} holds no rows to plot")
     if stage == "adaptation":
         fig = figures.adaptation_curves(table, note=figures.band_caption(table, "Lines: mean over seeds; bands"))
     else:

@@ -109,12 +109,13 @@ def write_csvs(folder: Path) -> None:
     rows += [f"runs/e/T{s},{method},{lam},{s},p{k},{v + 0.1 * k},0.01,{v + 0.1 * k}" for method, lam, v in (("modular", 0.5, 0.8), ("no_task_logits", 0.0, 0.3)) for s in (0, 1) for k in (0, 1)]
     (folder / "my-zeroshot.csv").write_text("\n".join(rows) + "\n")
     (folder / "notes.csv").write_text("a,b\n1,2\n")
+    (folder / "failed.csv").write_text("run,method,lam,seed,partner,mean_return,stderr,exact_return\n")  # a stage that wrote no row
 
 
 def test_adaptation_and_zeroshot_csvs_get_a_png_each(tmp_path: Path) -> None:
     write_csvs(tmp_path / "out")
     written = plot_folder(tmp_path / "out")
-    assert written == [tmp_path / "out" / "my-adapt.png", tmp_path / "out" / "my-zeroshot.png"]  # notes.csv is no stage table
+    assert written == [tmp_path / "out" / "my-adapt.png", tmp_path / "out" / "my-zeroshot.png"]  # notes.csv, failed.csv: nothing to draw
     for png in written:
         check_png(png)
     assert plot_folder(tmp_path / "out" / "my-adapt.csv") == [tmp_path / "out" / "my-adapt.png"]
