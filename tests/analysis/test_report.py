@@ -36,6 +36,17 @@ def test_report_and_every_linked_figure_exist(report: Path, text: str) -> None:
         assert png.with_suffix(".pdf").is_file()
 
 
+def test_every_figure_with_a_band_says_what_the_band_is(text: str) -> None:
+    def caption(name: str) -> str:
+        return text.split(f"![{name}](figures/{name}.png)")[1].split("\n\n")[1]
+
+    for name in ("adapt_armsexp", "zeroshot", "marginals", "training_bandit"):
+        assert caption(name).startswith("*") and "95% t-interval over seeds" in caption(name), name
+        assert "n = 1 seed per method; no band where n = 1" in caption(name), name  # the fixture has one seed
+    assert "(each seed averaged over its test partners first)" in caption("adapt_armsexp")
+    assert "standard error of the share over the pairs (n = 23 pairs)" in caption("userstudy")
+
+
 def test_status_names_the_env_steps_each_ego_trained_for(text: str) -> None:
     # The fixture's 4 trials each end their progress.csv at 2048 env steps.
     assert "| none | 4 | 2,048 |" in text

@@ -87,7 +87,8 @@ def user_study_section(ctx: Context) -> str:
         "",
         md_table(["claim", "verdict", "evidence"], [[c.claim.text, c.verdict, c.evidence] for c in checks]),
     ]
-    lines += ["", ctx.save(figures.user_study_bars(table, {k: v.value for k, v in paper.USER_STUDY_FIGURE.items()}, "user study (appendix table, 23 pairs); crosses: paper's figure"), "userstudy")]
+    fig = figures.user_study_bars(table, {k: v.value for k, v in paper.USER_STUDY_FIGURE.items()}, "user study (appendix table, 23 pairs); crosses: paper's figure")
+    lines += ["", ctx.save(fig, "userstudy", f"Error bars: one standard error of the share over the pairs (n = {n_pairs} pairs), as in the paper's figure.")]
     if ctx.live_study_paths:
         try:
             live = loaders.load_user_study_csvs(ctx.live_study_paths)
@@ -104,6 +105,10 @@ def user_study_section(ctx: Context) -> str:
             "",
             md_table(["bar", "first try", "n"], [[f"{r.task.capitalize()}-{r.context}", f"{r.coordinated}/{r.n} = {r.score:.3f} ± {r.sem:.3f}", r.n] for r in ls.itertuples()]),
             "",
-            ctx.save(figures.user_study_bars(ls, {(r.task, r.context): r.score for r in table.itertuples()}, "recorded sessions; crosses: the paper's table"), "userstudy_live"),
+            ctx.save(
+                figures.user_study_bars(ls, {(r.task, r.context): r.score for r in table.itertuples()}, "recorded sessions; crosses: the paper's table"),
+                "userstudy_live",
+                f"Error bars: one standard error of the share over the pairs (n = {live['pair_id'].nunique()} pairs).",
+            ),
         ]
     return "\n".join(lines)
