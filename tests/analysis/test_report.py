@@ -45,6 +45,7 @@ def test_every_figure_with_a_band_says_what_the_band_is(text: str) -> None:
         assert "n = 1 seed per method; no band where n = 1" in caption(name), name  # the fixture has one seed
     assert "(each seed averaged over its test partners first)" in caption("adapt_armsexp")
     assert "standard error of the share over the pairs (n = 23 pairs)" in caption("userstudy")
+    assert "the replicated unit is the training seed" in text and "A hierarchical bootstrap is not used" in text  # the header says which interval
 
 
 def test_status_names_the_env_steps_each_ego_trained_for(text: str) -> None:
