@@ -1,4 +1,7 @@
-"""The `rllib-conv` command: listing, bad input (exit 2, one line, nothing written), a tiny train."""
+"""The `rllib-conv` command: listing and showing, bad input (exit 2, one line, nothing written), a tiny train.
+
+Every other bad input: tests/test_cli_errors.py; help: tests/test_cli_help.py; where results go: tests/test_cli_outputs.py.
+"""
 
 from __future__ import annotations
 
@@ -13,6 +16,18 @@ def test_envs_and_partners_list(capsys) -> None:
     assert main(["partners", "list"]) == 0
     out = capsys.readouterr().out
     assert "bandit-s2-hand" in out and "blocks-perm" in out and "bandit-user-study" in out
+    assert "rllib-conv partners show NAME" in out
+
+
+def test_partners_show_lists_members_with_split_kind_and_params(capsys) -> None:
+    assert main(["partners", "show", "bandit-s2-hand"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith("bandit-s2-hand: bandit {'symmetric': 2")
+    members = [line for line in lines if line.strip().startswith(("hand-train-", "hand-test-"))]
+    assert len(members) == 8
+    assert members[0].split()[:3] == ["hand-train-0", "train", "bandit_convention"]
+    assert members[0].rstrip().endswith('{"arms": [0, 1, 2, 3]}')
+    assert {m.split()[1] for m in members} == {"train", "test"}
 
 
 def test_bad_config_exits_2_with_one_line_and_writes_nothing(tmp_path, capsys) -> None:
@@ -30,8 +45,12 @@ def test_bad_config_exits_2_with_one_line_and_writes_nothing(tmp_path, capsys) -
 
 def test_adapt_rejects_a_zero_pick_budget_before_anything_runs(tmp_path, capsys) -> None:
     out, storage = tmp_path / "curves", tmp_path / "runs"
-    assert main(["adapt", str(tmp_path), "--head-init", "pick", "--pick-steps", "0", "--out", str(out), "--storage", str(storage)]) == 2
-    assert "pick_steps: Input should be greater than 0" in capsys.readouterr().err  # not silently the default
+    try:
+        status = main(["adapt", str(tmp_path), "--head-init", "pick", "--pick-steps", "0", "--out", str(out), "--storage", str(storage)])
+    except SystemExit as exc:  # argparse refuses it
+        status = exc.code
+    assert status == 2
+    assert "argument --pick-steps: expected a whole number >= 1, got '0'" in capsys.readouterr().err  # not silently the default
     assert not out.exists() and not storage.exists()
 
 
@@ -55,5 +74,9 @@ def test_train_prints_a_summary_per_trial(ray_session, tmp_path, capsys) -> None
     path.write_text(yaml.safe_dump(exp))
     assert main(["train", str(path), "--storage", str(tmp_path / "runs")]) == 0
     out = capsys.readouterr().out
-    assert "bandit-s1-hand" in out and "bandit-s2-hand" in out
+    rows = [line for line in out.splitlines() if "bandit-s" in line]
+    assert len(rows) == 2 and "bandit-s1-hand" in rows[0] + rows[1] and "bandit-s2-hand" in rows[0] + rows[1]
+    assert all(" modular " in row for row in rows)  # read from each trial's config.yaml, not None
     assert len(list((tmp_path / "runs" / "tiny").glob("EgoTrainable_*/config.yaml"))) == 2
+    assert out.splitlines()[-1] == f"results in {tmp_path / 'runs' / 'tiny'}"
+    assert f"tensorboard --logdir {tmp_path / 'runs' / 'tiny'}" in out
