@@ -286,15 +286,15 @@ def _plot_folder() -> Callable[[Path], list[Path]] | None:
     return plot_folder
 
 
-def _figures(folder: Path) -> list[Path]:
-    """Draw the figures of a finished command's results; a drawing problem is a warning, never a lost result."""
+def _figures(path: Path) -> list[Path]:
+    """Draw the figures of a finished command's results (a folder or a CSV); a drawing problem is a warning, never a lost result."""
     plot_folder = _plot_folder()
     if plot_folder is None:
         return []
     try:
-        return list(plot_folder(folder))
+        return list(plot_folder(path))
     except Exception as exc:  # the results are written; a figure is not worth failing the command
-        print(f"rllib-conv: warning: no figures for {folder}: {_one_line(exc)} (`rllib-conv plot {folder}` retries)", file=sys.stderr)
+        print(f"rllib-conv: warning: no figures for {path}: {_one_line(exc)} (`rllib-conv plot {path}` retries)", file=sys.stderr)
         return []
 
 
@@ -464,9 +464,10 @@ def _cmd_adapt(args: argparse.Namespace) -> None:
     curves = run_adaptation(raw, out=args.out, storage=args.storage, address=args.address)
     print("mean over partners and seeds, by env steps:")
     print(_table(adapt_summary(curves)))
-    for figure in _figures(Path(args.out)):
+    csv = Path(args.out) / f"{name}.csv"
+    for figure in _figures(csv):
         print(f"figure: {figure}")
-    print(f"wrote {Path(args.out) / (name + '.csv')}")
+    print(f"wrote {csv}")
 
 
 def _cmd_zeroshot(args: argparse.Namespace) -> None:
@@ -485,9 +486,10 @@ def _cmd_zeroshot(args: argparse.Namespace) -> None:
 
     table = run_zeroshot(raw, out=args.out, storage=args.storage, address=args.address)
     print(_table(table.drop(columns=["run"])))
-    for figure in _figures(Path(args.out)):
+    csv = Path(args.out) / f"{name}.csv"
+    for figure in _figures(csv):
         print(f"figure: {figure}")
-    print(f"wrote {Path(args.out) / (name + '.csv')}")
+    print(f"wrote {csv}")
 
 
 def _cmd_marginals(args: argparse.Namespace) -> None:
@@ -589,16 +591,12 @@ def _cmd_report(args: argparse.Namespace) -> None:
 
 
 def _cmd_plot(args: argparse.Namespace) -> None:
-    folder = Path(args.folder)
-    if not folder.is_dir():
-        raise ValueError(f"FOLDER {args.folder!r} is not a folder; expected a training or sweep folder, or a folder of adaptation or zero-shot CSVs")
+    if not Path(args.folder).exists():
+        raise ValueError(f"FOLDER {args.folder!r} does not exist; expected a training or sweep folder, an adaptation or zero-shot CSV, or a folder of them")
     plot_folder = _plot_folder()
     if plot_folder is None:
         raise RuntimeError("this installation has no figures (analysis/plots.py is missing)")
-    figures = list(plot_folder(folder))
-    if not figures:
-        raise ValueError(f"FOLDER {args.folder!r} holds nothing to plot; expected a training or sweep folder, or adaptation or zero-shot CSVs")
-    for figure in figures:
+    for figure in plot_folder(Path(args.folder)):  # ValueError naming FOLDER when it holds nothing to plot
         print(f"wrote {figure}")
 
 
@@ -767,7 +765,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--user-study", nargs="*", default=None, metavar="PATH", help="recorded session CSVs or folders (default: ROOT/user_study)")
 
     p = command("plot", "draw (again) the figures of a training or sweep folder, or of adaptation or zero-shot CSVs", _cmd_plot)
-    p.add_argument("folder", metavar="FOLDER", help="a training or sweep folder (STORAGE/NAME), or a folder of adaptation or zero-shot CSVs")
+    p.add_argument("folder", metavar="FOLDER", help="a training or sweep folder (STORAGE/NAME), an adaptation or zero-shot CSV, or a folder of them")
 
     p = command("crossplay", "pair every member of population A (ego seat) with every member of B", _cmd_crossplay)
     p.add_argument("a", metavar="A", help="population name, manifest or folder (the ego seat)")

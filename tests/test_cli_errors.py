@@ -97,7 +97,8 @@ CASES = [
     (["reproduce", "bandit", "--plan", "bad.yaml"], "--plan file 'bad.yaml' is not valid YAML"),
     (["report", "notrepro"], "ROOT 'notrepro' is not a reproduce folder"),
     (["report", "missing"], "ROOT 'missing' is not a reproduce folder"),
-    (["plot", "missing"], "FOLDER 'missing' is not a folder"),
+    (["plot", "missing"], "FOLDER 'missing' does not exist"),
+    (["plot", "notrepro"], "holds nothing to plot"),
     # the web app
     (["play", "--port", "70000"], "--port: expected a port 0-65535"),
     (["play", "--port", "-1"], "--port: expected a port 0-65535"),

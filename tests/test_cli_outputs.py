@@ -49,6 +49,15 @@ def test_train_again_says_the_run_is_reused_and_trains_nothing(tiny, capsys) -> 
     assert f"note: {tiny['storage'] / 'tiny'} already holds this experiment (1 of 1 trials finished)" in out
     assert (tiny["trial"] / "progress.csv").read_text() == progress
     assert last_line(out) == f"results in {tiny['storage'] / 'tiny'}"
+    assert f"figure: {tiny['storage'] / 'tiny' / 'learning_curves.png'}" in out
+
+
+def test_plot_redraws_the_figures_of_a_training_folder(tiny, capsys) -> None:
+    figure = tiny["storage"] / "tiny" / "learning_curves.png"
+    figure.unlink()
+    assert main(["plot", str(tiny["storage"] / "tiny")]) == 0
+    assert last_line(capsys.readouterr().out) == f"wrote {figure}"
+    assert figure.read_bytes().startswith(b"\x89PNG")
 
 
 def test_adapt_names_its_outputs_after_the_inputs_so_a_second_adaptation_does_not_clash(tiny, tmp_path, capsys) -> None:
@@ -61,6 +70,7 @@ def test_adapt_names_its_outputs_after_the_inputs_so_a_second_adaptation_does_no
     assert len(csvs) == 2 and all(c.name.startswith(f"tiny-{tiny['trial'].name.split('_')[1]}_00000-hand-test-") for c in csvs)
     assert {last_line(first), last_line(second)} == {f"wrote {c}" for c in csvs}
     assert {pd.read_csv(c)["partner"].iloc[0] for c in csvs} == {"hand-test-0", "hand-test-1"}
+    assert f"figure: {csvs[0].with_suffix('.png')}" in first + second
     table = [line for line in first.split("by env steps:\n", 1)[1].splitlines() if not line.startswith(("figure: ", "wrote "))]
     assert table[0].split() == ["steps", "modular", "lam", "0.0", "return", "modular", "lam", "0.0", "exact"]
     assert max(map(len, table)) < 100  # it was ~250 characters wide
