@@ -184,9 +184,10 @@ def _with_sets(raw: dict[str, Any], sets: Sequence[str], schema: type, origins: 
 
     raw, origins = copy.deepcopy(raw), dict(origins)
     for text in sets:
-        if "=" in text:
-            _yaml_value(text.split("=", 1)[1], f"--set {text}")
-        key, value = parse_override(text)
+        try:
+            key, value = parse_override(text)
+        except yaml.YAMLError as exc:
+            raise ValueError(f"--set {text}: not valid YAML ({_one_line(exc)})") from None
         try:
             set_path(raw, key, value)
         except (AttributeError, TypeError):  # a key below a value that is not a mapping (lam.x=1)
@@ -279,7 +280,7 @@ def _note_reuse(folder: Path, spec: dict[str, Any], trials: int | None = None) -
 
 def _plot_folder() -> Callable[[Path], list[Path]] | None:
     """`analysis.plots.plot_folder`, or None in an installation without it."""
-    if importlib.util.find_spec("analysis.plots") is None:
+    if importlib.util.find_spec("analysis") is None or importlib.util.find_spec("analysis.plots") is None:
         return None
     from analysis.plots import plot_folder
 
@@ -296,6 +297,13 @@ def _figures(path: Path) -> list[Path]:
     except Exception as exc:  # the results are written; a figure is not worth failing the command
         print(f"rllib-conv: warning: no figures for {path}: {_one_line(exc)} (`rllib-conv plot {path}` retries)", file=sys.stderr)
         return []
+
+
+def _wrote_with_figures(csv: Path) -> None:
+    """Draw a stage CSV's figure, then say where both went (the CSV last)."""
+    for figure in _figures(csv):
+        print(f"figure: {figure}")
+    print(f"wrote {csv}")
 
 
 def _table(frame: Any, width: int = 160) -> str:
@@ -464,10 +472,7 @@ def _cmd_adapt(args: argparse.Namespace) -> None:
     curves = run_adaptation(raw, out=args.out, storage=args.storage, address=args.address)
     print("mean over partners and seeds, by env steps:")
     print(_table(adapt_summary(curves)))
-    csv = Path(args.out) / f"{name}.csv"
-    for figure in _figures(csv):
-        print(f"figure: {figure}")
-    print(f"wrote {csv}")
+    _wrote_with_figures(Path(args.out) / f"{name}.csv")
 
 
 def _cmd_zeroshot(args: argparse.Namespace) -> None:
@@ -486,10 +491,7 @@ def _cmd_zeroshot(args: argparse.Namespace) -> None:
 
     table = run_zeroshot(raw, out=args.out, storage=args.storage, address=args.address)
     print(_table(table.drop(columns=["run"])))
-    csv = Path(args.out) / f"{name}.csv"
-    for figure in _figures(csv):
-        print(f"figure: {figure}")
-    print(f"wrote {csv}")
+    _wrote_with_figures(Path(args.out) / f"{name}.csv")
 
 
 def _cmd_marginals(args: argparse.Namespace) -> None:
@@ -508,21 +510,18 @@ def _cmd_marginals(args: argparse.Namespace) -> None:
 
 
 def _cmd_pair(args: argparse.Namespace) -> None:
-    from rllib_conv.pipelines.pair_config import PairConfig, split_seat
+    from rllib_conv.pipelines.pair_config import PairConfig, is_run, split_seat
 
     env_config = None if args.env_config is None else _yaml_value(args.env_config, "--env-config")
     raw = {"seats": args.seats, "episodes": args.episodes, "seed": args.seed, "env": args.env, "env_config": env_config}
     origins = {("seats",): "SEATS", ("env",): "--env", ("env_config",): "--env-config", ("episodes",): "--episodes"}
     cfg = _validated(raw, PairConfig, origins, "arguments")[0]
-    from rllib_conv.common.run_folders import POPULATION_FILE
-
     labels = []
     for seat in cfg.seats:
         source, what = split_seat(seat)
-        trial = Path(source).is_dir() and not (Path(source) / POPULATION_FILE).is_file()
-        if trial:
+        if is_run(source):
             _trials([source])
-        labels.append(f"{_run_label(source) if trial else Path(source).stem}-{what}")
+        labels.append(f"{_run_label(source) if is_run(source) else Path(source).stem}-{what}")
     path = Path(args.out) / f"{_slug(args.name or '__'.join(labels))}.csv"
     from rllib_conv.pipelines.pair import pair
 
@@ -624,6 +623,13 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--address", default=None, help="Ray cluster address (auto or HOST:PORT); default: $RAY_ADDRESS or a local Ray")
 
 
+def _add_runs_args(p: argparse.ArgumentParser, out: str, what: str) -> None:
+    """RUNS, and the name and folder of the CSV a command writes after them."""
+    p.add_argument("runs", nargs="+", metavar="RUNS", help="trained-ego trial folders or experiment folders")
+    p.add_argument("--name", help=f"name of the output CSV{what} (default: after RUNS and the options that differ)")
+    p.add_argument("--out", default=out, help=f"folder for the CSV (default: {out})")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Return the argument parser of every subcommand."""
     raw_text = argparse.RawDescriptionHelpFormatter
@@ -633,8 +639,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"rllib-conv {_version()}", help="print the version and exit")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
-    def command(name: str, help: str, func: Callable[[argparse.Namespace], None], **kwargs: Any) -> argparse.ArgumentParser:
-        p = sub.add_parser(name, help=help, description=kwargs.pop("description", help), parents=[verbosity], **kwargs)
+    def command(name: str, help: str, func: Callable[[argparse.Namespace], None], group: Any = sub, **kwargs: Any) -> argparse.ArgumentParser:
+        p = group.add_parser(name, help=help, description=kwargs.pop("description", help), parents=[verbosity], **kwargs)
         p.set_defaults(func=func)
         return p
 
@@ -664,15 +670,10 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("partners", help="partner populations: list, show, train", description="Partner populations: list, show, train.")
     psub = p.add_subparsers(dest="partners_command", required=True, metavar="COMMAND", parser_class=_Parser)
 
-    def partners_command(name: str, help: str, func: Callable[[argparse.Namespace], None]) -> argparse.ArgumentParser:
-        q = psub.add_parser(name, help=help, description=help, parents=[verbosity])
-        q.set_defaults(func=func)
-        return q
-
-    partners_command("list", "list the built-in populations", _cmd_partners_list)
-    q = partners_command("show", "list a population's members: name (for --partner), split, kind, params", _cmd_partners_show)
+    command("list", "list the built-in populations", _cmd_partners_list, psub)
+    q = command("show", "list a population's members: name (for --partner), split, kind, params", _cmd_partners_show, psub)
     q.add_argument("population", metavar="NAME", help="a built-in population name, a manifest file or a population folder")
-    q = partners_command("train", "train a self-play population from a YAML (see tune_configs/selfplay_*.yaml)", _cmd_partners_train)
+    q = command("train", "train a self-play population from a YAML (see tune_configs/selfplay_*.yaml)", _cmd_partners_train, psub)
     q.add_argument("config", help="self-play YAML (see tune_configs/selfplay_*.yaml)")
     q.add_argument("--out", default="populations", help="folder for the population (default: populations)")
     q.add_argument("--overwrite", action="store_true", help="replace an existing population of the same name")
@@ -682,7 +683,7 @@ def build_parser() -> argparse.ArgumentParser:
         "adapt", "adapt trained egos to new partners (fresh head, task module kept, lam 0)", _cmd_adapt,
         epilog=_set_help(ADAPT_SET_KEYS), formatter_class=raw_text,
     )
-    p.add_argument("runs", nargs="+", metavar="RUNS", help="trained-ego trial folders or experiment folders")
+    _add_runs_args(p, "adaptation", " and Tune experiment")
     p.add_argument("--partner", action="append", help="adapt to this partner only (repeatable; names: rllib-conv partners show POP); default: the --split")
     p.add_argument("--population", help="population of the new partners (default: the one each run trained on)")
     p.add_argument("--split", default="test", choices=["train", "test"], help="which partners of the population to adapt to (default: test)")
@@ -693,27 +694,21 @@ def build_parser() -> argparse.ArgumentParser:
         help="pick: first try the fresh head and every training partner's head on the new partner, adapt from the best (not in the paper)",
     )
     p.add_argument("--pick-steps", type=_positive_int, help="env steps spent picking the head (default: one update's worth)")
-    p.add_argument("--name", help="name of the output CSV and Tune experiment (default: after RUNS and the options that differ)")
-    p.add_argument("--out", default="adaptation", help="folder for the curves CSV (default: adaptation)")
     _add_run_args(p)
 
     p = command(
         "zeroshot", "zero-shot coordination on the new task with known partners", _cmd_zeroshot,
         epilog=_set_help(ZEROSHOT_SET_KEYS), formatter_class=raw_text,
     )
-    p.add_argument("runs", nargs="+", metavar="RUNS", help="trained-ego trial folders or experiment folders")
+    _add_runs_args(p, "zeroshot", " and Tune experiment")
     p.add_argument("--new-task", action="store_true", help="the new task is each run's population's -newtask variant (what happens without --new-population)")
     p.add_argument("--new-population", help="population of the same partners on the new task (default: POPULATION-newtask)")
-    p.add_argument("--name", help="name of the output CSV and Tune experiment (default: after RUNS and the options that differ)")
-    p.add_argument("--out", default="zeroshot", help="folder for the results CSV (default: zeroshot)")
     _add_run_args(p)
 
     p = command("marginals", "distance of each run's task module to the true marginals", _cmd_marginals)
-    p.add_argument("runs", nargs="+", metavar="RUNS", help="trained-ego trial folders or experiment folders")
+    _add_runs_args(p, "marginals", "")
     p.add_argument("--episodes", type=_positive_int, default=200, help="episodes per training partner to collect states (non-bandit games; default 200)")
     p.add_argument("--seed", type=int, default=0, help="seed of those episodes (default 0)")
-    p.add_argument("--name", help="name of the output CSV (default: after RUNS and the options that differ)")
-    p.add_argument("--out", default="marginals", help="folder for the CSV (default: marginals)")
 
     p = command(
         "pair", "play any two players together (ego heads, task modules, population members, scripted partners)", _cmd_pair,

@@ -20,14 +20,14 @@ import pandas as pd
 import yaml
 
 from rllib_conv import envs, partners
-from rllib_conv.common.run_folders import POPULATION_FILE, trial_folders
+from rllib_conv.common.run_folders import trial_folders
 from rllib_conv.envs.bandit import CollaborativeBanditEnv
 from rllib_conv.modules.multi import TASK_ID
 from rllib_conv.partners.bandit import BanditConventionPartner
 from rllib_conv.partners.base import Partner
 from rllib_conv.partners.play import play_episodes
 from rllib_conv.partners.trained import PolicyPartner
-from rllib_conv.pipelines.pair_config import PairConfig, split_seat
+from rllib_conv.pipelines.pair_config import PairConfig, is_run, split_seat
 from rllib_conv.training.checkpoints import last_checkpoint
 from rllib_conv.training.evaluate import ego_head_partner, load_module
 from rllib_conv.training.experiment import trial_config
@@ -72,9 +72,8 @@ def seat(text: str, seed: int = 0) -> Seat:
             return Seat(text, partners.partner_from_spec({"name": text, "kind": source, "params": params}), None)
         except TypeError as exc:  # unknown or missing constructor arguments
             raise ValueError(f"seat {text!r}: {exc}") from None
-    path = Path(source)
-    if path.is_dir() and not (path / POPULATION_FILE).is_file():
-        trials = trial_folders(path)
+    if is_run(source):
+        trials = trial_folders(source)
         if len(trials) > 1:
             raise ValueError(f"seat {text!r}: {source!r} holds {len(trials)} trials; name one trial folder")
         return _module_seat(text, trials[0], what, seed)

@@ -6,11 +6,13 @@ the seat syntax is documented in `rllib-conv pair --help` (`rllib_conv.cli.SEAT_
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 from pydantic import Field, PositiveInt, field_validator
 
 from rllib_conv.common.config_files import Strict
+from rllib_conv.common.run_folders import POPULATION_FILE
 from rllib_conv.training.settings import EnvName
 
 SEAT_SEPARATOR = ":"
@@ -22,6 +24,11 @@ def split_seat(text: str) -> tuple[str, str]:
     if not sep or not source:
         raise ValueError(f"seat {text!r}: expected SOURCE:WHAT (KIND:PARAMS, RUN:MODULE or POP:NAME)")
     return source, what
+
+
+def is_run(source: str) -> bool:
+    """Whether a seat's SOURCE is a trained ego's folder (a folder that is not a population's)."""
+    return Path(source).is_dir() and not (Path(source) / POPULATION_FILE).is_file()
 
 
 class PairConfig(Strict):
