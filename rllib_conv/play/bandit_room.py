@@ -2,13 +2,18 @@
 
 Train task then Test task (`envs.make("bandit", task="user_study"[, new_task=True])`),
 contexts A, B, C in turn, 5 tries each. In a try both players pick an arm without seeing
-the other's pick; when both have picked, both picks are revealed, the try is recorded (one
-user-study CSV row) and the next try starts. The agent picks its arm at the start of a try,
-before the person, from its policy alone, and learns from the person's arm after the reveal.
+the other's pick; when both have picked, the try is written to the database (one
+user-study row), both picks are revealed and the next try starts. A person's pick made
+before the partner's is written too, so it survives a restart. The agent picks its arm at
+the start of a try, before the person, from its policy alone, and learns from the
+person's arm after the reveal; its hidden pick is not stored (after a restart it picks
+the try in progress again, which the person has not seen).
 """
 
 from __future__ import annotations
 
+import sqlite3
+import time
 from typing import Any
 
 import numpy as np
@@ -21,17 +26,18 @@ from rllib_conv.play.agent import (
     bandit_observation,
     bandit_targets,
 )
-from rllib_conv.play.recording import SessionRecorder
 from rllib_conv.play.room import (
     CONTEXT_NAMES,
-    SEATS,
     STUDY_TASKS,
     TASK_LABELS,
     TRIES,
+    CallLater,
     PlayError,
     Room,
     parse_int,
+    thread_call_later,
 )
+from rllib_conv.play.store import Store
 
 
 class BanditRoom(Room):
@@ -41,18 +47,19 @@ class BanditRoom(Room):
 
     def __init__(
         self,
-        code: str,
         pair: int,
-        mode: str,
-        recorder: SessionRecorder,
+        store: Store,
         agent: AdaptiveAgent | None = None,
         agent_seat: int | None = None,
         priors: dict[str, Prior] | None = None,
         tries: int = TRIES,
+        call_later: CallLater = thread_call_later,
     ) -> None:
-        super().__init__(code, pair, mode, recorder)
+        super().__init__(pair, store, agent, agent_seat, call_later)
         if not 1 <= tries <= TRIES:
             raise ValueError(f"tries must be in 1..{TRIES} (the user-study format), got {tries}")
+        if agent is not None and set(priors or {}) != set(STUDY_TASKS):
+            raise ValueError(f"an agent room needs a prior per task {list(STUDY_TASKS)}, got {sorted(priors or {})}")
         self.prizes = {task: envs.make("bandit", task="user_study", new_task=task == "test").prizes for task in STUDY_TASKS}
         self.schedule = [(task, c, t) for task in STUDY_TASKS for c in range(len(CONTEXT_NAMES)) for t in range(1, tries + 1)]
         self.tries = tries
@@ -60,19 +67,16 @@ class BanditRoom(Room):
         self.picks: dict[int, int | None] = {1: None, 2: None}  # 0-based arms of the current try
         self.history: list[dict[str, Any]] = []
         self.score = 0.0
-        self.agent = agent
-        self.agent_seat = agent_seat
         self.priors = priors or {}
-        if agent is not None:
-            if agent_seat not in SEATS:
-                raise ValueError(f"agent_seat must be 1 or 2, got {agent_seat!r}")
-            self.kinds[agent_seat] = "agent"
-            self._agent_pick()
 
     @property
     def finished(self) -> bool:
-        """Whether every try of both tasks has been played."""
         return self.step >= len(self.schedule)
+
+    def start(self) -> None:
+        with self.lock:
+            if self.agent is not None and not self.finished and self.picks[self.agent_seat] is None:
+                self._agent_pick()
 
     def _agent_pick(self) -> None:
         # The agent commits to its arm before the person picks: it never sees the person's choice.
@@ -81,71 +85,89 @@ class BanditRoom(Room):
         obs = bandit_observation(context, len(CONTEXT_NAMES))
         self.picks[self.agent_seat] = self.agent.act(obs, np.ones(USER_STUDY_ARMS, dtype=np.int8))
 
-    def move(self, token: Any, payload: dict[str, Any]) -> dict[str, Any]:
-        seat = self.seat_of(token)
+    def move(self, seat: int, payload: dict[str, Any]) -> dict[str, Any]:
         with self.lock:
             if self.finished:
                 raise PlayError(409, f"the session is over: all {len(self.schedule)} tries have been played")
-            if not self.full():
-                raise PlayError(409, f"your partner has not joined yet: give them the room code {self.code}")
             arm = parse_int(payload.get("arm"), "arm", 1, USER_STUDY_ARMS) - 1
+            self._check_step(payload, self.step, "try")
             if self.picks[seat] is not None:
                 raise PlayError(409, f"you already picked arm {self.picks[seat] + 1} for this try; wait for your partner's pick")
-            self.picks[seat] = arm
-            if all(p is not None for p in self.picks.values()):
-                try:
-                    self._resolve()
-                except (OSError, ValueError) as exc:
-                    self.picks[seat] = None  # not recorded, so not played: the person picks again
-                    raise PlayError(500, f"could not record this try ({exc}); your pick was not counted, please pick again") from None
+            picks = dict(self.picks)
+            picks[seat] = arm
+            try:
+                if picks[3 - seat] is None:
+                    self.store.add_pick(self.pair, self.step, seat, arm, time.time())
+                else:
+                    self.store.add_try(self.pair, self.step, self._row(picks), self._prize(picks), time.time())
+            except sqlite3.Error as exc:
+                raise PlayError(503, f"could not record your pick ({exc}); it was not counted, please pick again") from None
+            self.picks = picks
+            if picks[3 - seat] is not None:
+                self._resolve()
             self._bump()
-            return self.view(token)
+            return self.view(seat)
 
-    def _resolve(self) -> None:
+    def _row(self, picks: dict[int, int | None]) -> dict[str, Any]:
         task, context, attempt = self.schedule[self.step]
-        a1, a2 = self.picks[1], self.picks[2]
-        prize = float(self.prizes[task][context, a1]) if a1 == a2 else 0.0
-        row = {"pair": self.pair, "task": task, "context": CONTEXT_NAMES[context], "try": attempt, "action_1": a1 + 1, "action_2": a2 + 1}
-        self.log.append([row])  # first: if recording fails, nothing below happens
-        self.history.append({"task": task, "context": CONTEXT_NAMES[context], "try": attempt, "arms": {1: a1 + 1, 2: a2 + 1}, "prize": prize})
+        return {"task": task, "context": CONTEXT_NAMES[context], "try": attempt, "action_1": picks[1] + 1, "action_2": picks[2] + 1}
+
+    def _prize(self, picks: dict[int, int | None]) -> float:
+        task, context, _ = self.schedule[self.step]
+        return float(self.prizes[task][context, picks[1]]) if picks[1] == picks[2] else 0.0
+
+    def _resolve(self, next_pick: bool = True) -> None:
+        """Reveal the try both have picked in (already written), learn, start the next one (the agent picks if `next_pick`)."""
+        task, context, attempt = self.schedule[self.step]
+        prize = self._prize(self.picks)
+        self.history.append({"task": task, "context": CONTEXT_NAMES[context], "try": attempt, "arms": {1: self.picks[1] + 1, 2: self.picks[2] + 1}, "prize": prize})
         self.score += prize
         if self.agent is not None:
+            self.agent.prior = self.priors[task]
             person = 3 - self.agent_seat
             self.agent.learn(bandit_targets(context, len(CONTEXT_NAMES), USER_STUDY_ARMS, self.picks[person]))
         self.step += 1
         self.picks = {1: None, 2: None}
-        if self.agent is not None and not self.finished:
+        if next_pick and self.agent is not None and not self.finished:
             self._agent_pick()
+
+    def restore(self) -> None:
+        with self.lock:
+            for row in self.store.tries(self.pair):
+                if row["step"] != self.step:
+                    raise ValueError(f"room {self.pair}: the database skips from try {self.step} to {row['step']}")
+                self.picks = {1: row["action_1"] - 1, 2: row["action_2"] - 1}
+                self._resolve(next_pick=False)  # `start` draws the agent's pick for the try in progress
+            for row in self.store.picks(self.pair):
+                if row["step"] == self.step:
+                    self.picks[row["seat"]] = row["action"]
 
     def _status(self, seat: int) -> tuple[str, str]:
         """(phase, sentence) for `seat`: whose turn it is."""
-        partner = "the agent" if self.partner_kind(seat) == "agent" else "your partner"
         if self.finished:
             return "finished", f"Session finished: {self.score:g} prize{'' if self.score == 1 else 's'} in {len(self.schedule)} tries. Thank you!"
-        if not self.full():
-            return "waiting_for_partner", f"Waiting for your partner to join: give them the room code {self.code}."
         if self.picks[seat] is None:
             task, context, attempt = self.schedule[self.step]
             if task == "test" and context == 0 and attempt == 1:
                 # The prizes change under the players' feet: say so, as the study's interface moved to a new task.
                 return "choose", "The Test task starts: the green arms have changed. Your turn: pick an arm."
             return "choose", "Your turn: pick an arm."
-        return "waiting", f"You picked arm {self.picks[seat] + 1}. Waiting for {partner} to pick."
+        return "waiting", f"You picked arm {self.picks[seat] + 1}. Waiting for {self._partner_words(seat)} to pick."
 
-    def view(self, token: Any) -> dict[str, Any]:
-        seat = self.seat_of(token)
+    def view(self, seat: int) -> dict[str, Any]:
         with self.lock:
             phase, status = self._status(seat)
             out = self._common_view(seat) | {
                 "phase": phase,
                 "status": status,
                 "score": self.score,
+                "step": self.step,
                 "played": self.step,
                 "total": len(self.schedule),
                 "tries": self.tries,
                 "your_choice": None if self.picks[seat] is None else self.picks[seat] + 1,
                 # Whether (never which arm) the partner has picked: the reveal waits for both.
-                "partner_chose": self.picks[3 - seat] is not None and self.full(),
+                "partner_chose": self.picks[3 - seat] is not None,
                 "history": [self._mine(h, seat) for h in self.history],
             }
             out["last"] = out["history"][-1] if self.history else None

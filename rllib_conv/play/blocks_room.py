@@ -1,15 +1,17 @@
 """`BlocksRoom`: the 2x2 block placing game as a room.
 
 `games` games in a row (`envs.make("blocks")`); P1 (red) sees the goal, P2 (blue) does not
-until the game ends. Moves alternate P1, P2, ...; every move is shown to both as it happens
-(the agent moves after `agent_delay` seconds so a person can follow). A finished game is
-recorded (6 rows).
+until the game ends. Moves alternate P1, P2, ...; every move is written to the database
+(with the game's goal and score when it ends the game) before it is shown to both (the
+agent moves after `agent_delay` seconds so a person can follow). Each game's goal is drawn
+from (seed, pair, game), so `restore` replays a room from its stored moves exactly.
 """
 
 from __future__ import annotations
 
 import copy
-import threading
+import sqlite3
+import time
 from typing import Any
 
 import numpy as np
@@ -22,15 +24,19 @@ from rllib_conv.play.agent import (
     blocks_p1_targets,
     blocks_p2_targets,
 )
-from rllib_conv.play.recording import SessionRecorder
 from rllib_conv.play.room import (
     CELL_NAMES,
     DEFAULT_GAMES,
-    SEATS,
+    CallLater,
+    Cancellable,
     PlayError,
     Room,
     parse_int,
+    thread_call_later,
 )
+from rllib_conv.play.store import Store
+
+RETRY_S = 2.0  # after a failed write the agent tries its move again this much later
 
 
 class BlocksRoom(Room):
@@ -40,18 +46,17 @@ class BlocksRoom(Room):
 
     def __init__(
         self,
-        code: str,
         pair: int,
-        mode: str,
-        recorder: SessionRecorder,
+        store: Store,
         agent: AdaptiveAgent | None = None,
         agent_seat: int | None = None,
         new_task: bool = False,
         games: int = DEFAULT_GAMES,
         seed: int = 0,
         agent_delay: float = 0.0,
+        call_later: CallLater = thread_call_later,
     ) -> None:
-        super().__init__(code, pair, mode, recorder)
+        super().__init__(pair, store, agent, agent_seat, call_later)
         if games < 1:
             raise ValueError(f"games must be at least 1, got {games}")
         self.env = envs.make("blocks", new_task=new_task)
@@ -59,23 +64,17 @@ class BlocksRoom(Room):
         self.games = games
         self.seed = seed
         self.game_no = 0
+        self.step = 0  # moves played in the whole session
         self.moves: list[tuple[int, int]] = []  # (player, action) of the current game
         self.results: list[dict[str, Any]] = []
         self.score = 0.0
-        self.agent = agent
-        self.agent_seat = agent_seat
         self.agent_delay = agent_delay
-        self._timer: threading.Timer | None = None
+        self._timer: Cancellable | None = None
         self.error: str | None = None
-        if agent is not None:
-            if agent_seat not in SEATS:
-                raise ValueError(f"agent_seat must be 1 or 2, got {agent_seat!r}")
-            self.kinds[agent_seat] = "agent"
         self._new_game()
 
     @property
     def finished(self) -> bool:
-        """Whether all games have been played."""
         return self.game_no > self.games
 
     @property
@@ -89,73 +88,74 @@ class BlocksRoom(Room):
         if not self.finished:
             # Seeded per pair and game: a session can be replayed; pairs get different goals.
             self.env.reset(seed=int(np.random.SeedSequence([self.seed, self.pair, self.game_no]).generate_state(1)[0]))
+
+    def start(self) -> None:
+        with self.lock:
             self._maybe_agent()
 
     def _maybe_agent(self) -> None:
-        if self.agent is None or self.finished or self.turn != self.agent_seat or not self.full():
+        if self.agent is None or self.closed or self.finished or self.turn != self.agent_seat:
             return
         if self.agent_delay <= 0:
-            self._agent_move(self.game_no, len(self.moves))
-            return
-        self._timer = threading.Timer(self.agent_delay, self._agent_move, args=(self.game_no, len(self.moves)))
-        self._timer.daemon = True
-        self._timer.start()
+            self._agent_move(self.step)
+        else:
+            self._timer = self.call_later(self.agent_delay, lambda step=self.step: self._agent_move(step))
 
-    def _agent_move(self, game_no: int, move_no: int) -> None:
+    def _agent_move(self, step: int) -> None:
         with self.lock:
             # A stale timer (the room moved on or closed) does nothing.
-            if self.closed or self.finished or game_no != self.game_no or move_no != len(self.moves) or self.turn != self.agent_seat:
+            if self.closed or self.finished or step != self.step or self.turn != self.agent_seat:
                 return
             obs = self.env.observe(self.env.agent_selection)
             action = self.agent.act(obs[OBS_KEY], obs[MASK_KEY])
             try:
-                self._apply_recorded(self.agent_seat, action)
+                self._play(self.agent_seat, action)
                 self.error = None
-            except (OSError, ValueError) as exc:
+            except sqlite3.Error as exc:
                 # Shown in both pages; the agent tries its move again after a pause.
-                self.error = f"could not record the game ({exc}); retrying"
-                timer = threading.Timer(max(self.agent_delay, 2.0), self._agent_move, args=(game_no, move_no))
-                timer.daemon = True
-                self._timer = timer
-                timer.start()
+                self.error = f"could not record the agent's move ({exc}); retrying"
+                self._timer = self.call_later(max(self.agent_delay, RETRY_S), lambda: self._agent_move(step))
             self._bump()
 
-    def _apply_recorded(self, seat: int, action: int) -> None:
-        """Play `action` for `seat` (and, without delay, the agent's replies); all or nothing.
-
-        If recording a finished game fails, the room returns to the state before this move
-        (env, moves) and the error propagates: the move was not played.
-        """
-        snapshot = copy.deepcopy(self.env), list(self.moves)
-        try:
-            self._apply(seat, action)
-        except BaseException:
-            self.env, self.moves = snapshot
-            raise
-
-    def _apply(self, seat: int, action: int) -> None:
+    def _play(self, seat: int, action: int) -> None:
+        """Play `action` for `seat`, written to the database first: all or nothing (sqlite3.Error leaves the room as it was)."""
+        snapshot = copy.deepcopy(self.env)
         self.env.step(action)
+        result = None
+        if len(self.moves) + 1 == NUM_MOVES:
+            red_goal, blue_goal = self.env.goal
+            result = (int(red_goal), int(blue_goal), int(self.env.rewards["player_0"]))
+        try:
+            self.store.add_move(self.pair, self.step, self.game_no, len(self.moves) + 1, seat, action, time.time(), result)
+        except sqlite3.Error:
+            self.env = snapshot
+            raise
+        self._record(seat, action)
+        self._maybe_agent()
+
+    def _record(self, seat: int, action: int) -> None:
+        """The room's memory after a (written or replayed) move already stepped in the env."""
         self.moves.append((seat, action))
+        self.step += 1
         if len(self.moves) == NUM_MOVES:
             self._finish_game()
-        else:
-            self._maybe_agent()
 
     def _finish_game(self) -> None:
-        red_goal, blue_goal = self.env.goal
         score = float(self.env.rewards["player_0"])
-        task = "test" if self.new_task else "train"
-        rows = [
-            {"pair": self.pair, "task": task, "game": self.game_no, "move": i + 1, "player": p, "action": a, "red_goal": red_goal, "blue_goal": blue_goal, "score": int(score)}
-            for i, (p, a) in enumerate(self.moves)
-        ]
-        self.log.append(rows)
         self.results.append({"game": self.game_no, "goal": self.env.goal_grid().tolist(), "grid": self.env.grid.tolist(), "score": score, "moves": self._move_log()})
         self.score += score
         if self.agent is not None:
-            targets = blocks_p1_targets(self.moves) if self.agent_seat == 1 else blocks_p2_targets(self.moves, (red_goal, blue_goal))
+            targets = blocks_p1_targets(self.moves) if self.agent_seat == 1 else blocks_p2_targets(self.moves, tuple(self.env.goal))
             self.agent.learn(targets)
         self._new_game()
+
+    def restore(self) -> None:
+        with self.lock:
+            for row in self.store.moves(self.pair):
+                if row["step"] != self.step or row["game"] != self.game_no:
+                    raise ValueError(f"room {self.pair}: the database holds move {row['step']} of game {row['game']}, expected move {self.step} of game {self.game_no}")
+                self.env.step(row["action"])
+                self._record(row["player"], row["action"])
 
     def _move_log(self) -> list[dict[str, Any]]:
         out = []
@@ -165,42 +165,36 @@ class BlocksRoom(Room):
             out.append({"move": i + 1, "player": p, "action": a, "text": f"P{p} {what}"})
         return out
 
-    def move(self, token: Any, payload: dict[str, Any]) -> dict[str, Any]:
-        seat = self.seat_of(token)
+    def move(self, seat: int, payload: dict[str, Any]) -> dict[str, Any]:
         with self.lock:
             if self.finished:
                 raise PlayError(409, f"the session is over: all {self.games} games have been played")
-            if not self.full():
-                raise PlayError(409, f"your partner has not joined yet: give them the room code {self.code}")
             action = parse_int(payload.get("action"), "action", 0, len(ACTION_NAMES) - 1)
+            self._check_step(payload, self.step, "move")
             if self.turn != seat:
-                who = "the agent" if self.kinds.get(self.turn) == "agent" else "your partner"
-                raise PlayError(409, f"not your turn: move {len(self.moves) + 1} is P{self.turn}'s ({who})")
+                raise PlayError(409, f"not your turn: move {len(self.moves) + 1} is P{self.turn}'s ({self._partner_words(seat)})")
             try:
-                self._apply_recorded(seat, action)
-            except (OSError, ValueError) as exc:
-                raise PlayError(500, f"could not record this game ({exc}); your move was not counted, please play it again") from None
+                self._play(seat, action)
+            except sqlite3.Error as exc:
+                raise PlayError(503, f"could not record your move ({exc}); it was not counted, please play it again") from None
             self._bump()
-            return self.view(token)
+            return self.view(seat)
 
-    def view(self, token: Any) -> dict[str, Any]:
-        seat = self.seat_of(token)
+    def view(self, seat: int) -> dict[str, Any]:
         with self.lock:
             colour = "red" if seat == 1 else "blue"
-            partner = "the agent" if self.partner_kind(seat) == "agent" else "your partner"
             if self.finished:
                 phase, status = "finished", f"Session finished: {self.score:g} points in {self.games} game{'s' if self.games > 1 else ''}. Thank you!"
-            elif not self.full():
-                phase, status = "waiting_for_partner", f"Waiting for your partner to join: give them the room code {self.code}."
             elif self.turn == seat:
                 phase, status = "your_turn", f"Your turn (P{seat}, {colour}): move {len(self.moves) + 1} of {NUM_MOVES}."
             else:
-                phase, status = "their_turn", f"Waiting for {partner} (P{self.turn}): move {len(self.moves) + 1} of {NUM_MOVES}."
+                phase, status = "their_turn", f"Waiting for {self._partner_words(seat)} (P{self.turn}): move {len(self.moves) + 1} of {NUM_MOVES}."
             out = self._common_view(seat) | {
                 "phase": phase,
                 "status": status,
                 "colour": colour,
                 "score": self.score,
+                "step": self.step,
                 "games": self.games,
                 "game_no": min(self.game_no, self.games),
                 "played": len(self.results),
@@ -224,10 +218,8 @@ class BlocksRoom(Room):
                 )
             return out
 
-    def _on_full(self) -> None:
-        self._maybe_agent()  # the agent may be P1 and move first
-
     def close(self) -> None:
-        if self._timer is not None:
-            self._timer.cancel()
-        super().close()
+        with self.lock:
+            if self._timer is not None:
+                self._timer.cancel()
+            super().close()

@@ -1,33 +1,33 @@
-"""A game room: one pair's session, its seats and tokens, and the errors a request can get.
+"""A game room: one pair's session, who sits where, and the errors a move can get.
 
-A room is one session of one pair: a person with the agent (`mode="agent"`) or two people
-(`mode="human"`, the second joins with the room code). Players hold a secret token; every
-request names the room and the token. All checks happen before anything changes, so a bad
-request (unknown room, wrong token, a move out of turn, an invalid arm) raises `PlayError`
-(HTTP status + a message for the page) and leaves the room and its recording untouched.
+A room holds two seats, each a person or the adapting agent (`mode` "agent": one of each;
+"human": two people). The study (`study.Study`) seats participants and maps their tokens
+to seats; a room sees only seats. Every move names the `step` it answers (how many tries,
+or blocks moves, the session has played), so a move sent twice, or retried after a lost
+answer, is refused with 409 instead of being played twice.
 
-The games' rooms are `bandit_room.BanditRoom` and `blocks_room.BlocksRoom`; `lobby.Lobby`
-creates and finds them. Views (`Room.view(token)`) are plain JSON-able dicts the page
-renders as they are; the sentence in `status` says whose turn it is.
+All checks happen before anything changes, and what a move changes is written to the
+study database (`store.Store`) before the room's memory changes: a bad move raises
+`PlayError` (HTTP status + a sentence for the page) and leaves room and database as they
+were; a failed write raises PlayError 503 and nothing was played. After every change
+the room calls `on_change(room)` (the study pushes the new views to the players).
+
+The games' rooms are `bandit_room.BanditRoom` and `blocks_room.BlocksRoom`; `restore`
+replays a room from the database after a restart. Views (`Room.view(seat)`) are plain
+JSON-able dicts the page renders as they are; the sentence in `status` says whose turn it is.
 """
 
 from __future__ import annotations
 
 import math
-import secrets
 import threading
-import time
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Callable, Protocol
 
-from rllib_conv.play.agent import (
-    DEFAULT_STEP_SIZE,
-    Prior,
-)
-from rllib_conv.play.recording import SessionRecorder
+from rllib_conv.play.agent import DEFAULT_STEP_SIZE, AdaptiveAgent, Prior
+from rllib_conv.play.store import Store
 
 GAMES: tuple[str, ...] = ("bandit", "blocks")
-MODES: tuple[str, ...] = ("agent", "human")
 SEATS: tuple[int, ...] = (1, 2)
 STUDY_TASKS: tuple[str, ...] = ("train", "test")
 TASK_LABELS = {"train": "Train task", "test": "Test task"}
@@ -35,17 +35,33 @@ CONTEXT_NAMES: tuple[str, ...] = ("A", "B", "C")
 TRIES = 5
 DEFAULT_GAMES = 5
 CELL_NAMES: tuple[str, ...] = ("top-left", "top-right", "bottom-left", "bottom-right")
-CODE_ALPHABET = "ABCDEFGHJKLMNPQRSTUVWXYZ23456789"  # no 0/O, 1/I: codes are read aloud and typed
-CODE_LENGTH = 4
+MAX_STEP = 10_000
 
 
 class PlayError(Exception):
-    """A request the room refuses: `status` is the HTTP status, `message` the sentence shown in the page."""
+    """A request the study refuses: `status` is the HTTP status, `message` the sentence shown in the page."""
 
     def __init__(self, status: int, message: str) -> None:
         super().__init__(message)
         self.status = status
         self.message = message
+
+
+class Cancellable(Protocol):
+    def cancel(self) -> None: ...
+
+
+# (delay in seconds, callback) -> a handle whose cancel() stops it: loop.call_later in the
+# server, `thread_call_later` elsewhere.
+CallLater = Callable[[float, Callable[[], None]], Cancellable]
+
+
+def thread_call_later(delay: float, callback: Callable[[], None]) -> Cancellable:
+    """Run `callback` after `delay` seconds in a daemon thread (rooms used without an event loop)."""
+    timer = threading.Timer(delay, callback)
+    timer.daemon = True
+    timer.start()
+    return timer
 
 
 def parse_int(value: Any, name: str, low: int, high: int) -> int:
@@ -57,23 +73,24 @@ def parse_int(value: Any, name: str, low: int, high: int) -> int:
     elif isinstance(value, float):
         ok = math.isfinite(value) and value == int(value)
     elif isinstance(value, str):
-        ok = value.strip().lstrip("-").isdigit()
+        ok = value.strip().lstrip("-").isdigit() and len(value) < 20
     else:
         ok = False
     if ok:
         number = int(float(value)) if not isinstance(value, str) else int(value.strip())
         if low <= number <= high:
             return number
-    raise PlayError(400, f"{name} must be an integer from {low} to {high}, got {value!r}")
+    shown = repr(value) if len(repr(value)) <= 40 else repr(value)[:37] + "..."
+    raise PlayError(400, f"{name} must be an integer from {low} to {high}, got {shown}")
 
 
 @dataclass
 class AgentSettings:
-    """What the lobby needs to build one adapting agent per agent room.
+    """What the study needs to build one adapting agent per room of an agent condition.
 
     `priors`: the task-module prior per task ("train", "test" for the bandit; "task" for
-    blocks); `ego_seat`: the seat the trained ego plays (the other is the person's by
-    default); `description`: one line shown in the page.
+    blocks); `ego_seat`: the seat the trained ego plays; `description`: one line for the
+    admin page (never shown to participants).
     """
 
     priors: dict[str, Prior]
@@ -85,95 +102,78 @@ class AgentSettings:
 
 
 class Room:
-    """One pair's session: seats, tokens, a version counter the page long-polls on."""
+    """One pair's session: seats, a version counter, the database it writes to (module docstring)."""
 
     game: str = ""
 
-    def __init__(self, code: str, pair: int, mode: str, recorder: SessionRecorder) -> None:
-        self.code = code
+    def __init__(
+        self,
+        pair: int,
+        store: Store,
+        agent: AdaptiveAgent | None = None,
+        agent_seat: int | None = None,
+        call_later: CallLater = thread_call_later,
+    ) -> None:
         self.pair = pair
-        self.mode = mode
-        self.log = recorder.log(self.game, mode)
-        self.tokens: dict[str, int] = {}
-        self.kinds: dict[int, str] = {}  # seat -> "person" | "agent"
+        self.store = store
+        self.agent = agent
+        self.agent_seat = agent_seat
+        self.kinds: dict[int, str] = {1: "person", 2: "person"}
+        if agent is not None:
+            if agent_seat not in SEATS:
+                raise ValueError(f"agent_seat must be 1 or 2, got {agent_seat!r}")
+            self.kinds[agent_seat] = "agent"
+        self.mode = "agent" if agent is not None else "human"
+        self.call_later = call_later
         self.version = 0
         self.lock = threading.RLock()
-        self._changed = threading.Condition(self.lock)
         self.closed = False
-
-    # -- seats ----------------------------------------------------------------------
-    def add_person(self, seat: int | None = None) -> tuple[str, int]:
-        """Seat a person (in `seat`, or the first free one); return (token, seat). PlayError 409 if full."""
-        with self.lock:
-            free = [s for s in SEATS if s not in self.kinds]
-            if not free:
-                raise PlayError(409, f"room {self.code} is full: both players have joined")
-            if seat is not None and seat not in free:
-                raise PlayError(409, f"seat {seat} in room {self.code} is taken")
-            seat = free[0] if seat is None else seat
-            token = secrets.token_urlsafe(12)
-            self.tokens[token] = seat
-            self.kinds[seat] = "person"
-            if self.full():
-                self._on_full()
-            self._bump()
-            return token, seat
-
-    def _on_full(self) -> None:
-        """Called (under the lock) when the second player sits down."""
-
-    def seat_of(self, token: Any) -> int:
-        """The seat of the player holding `token`; PlayError 403 if it is not a player of this room."""
-        seat = self.tokens.get(token) if isinstance(token, str) else None
-        if seat is None:
-            raise PlayError(403, f"you are not a player of room {self.code} (unknown or missing player token); start or join a room from the home page")
-        return seat
-
-    def full(self) -> bool:
-        """Whether both seats are taken."""
-        return all(s in self.kinds for s in SEATS)
+        self.on_change: Callable[[Room], None] | None = None
 
     def partner_kind(self, seat: int) -> str:
-        """Who sits opposite `seat`: "agent", "person" or "nobody" (not joined yet)."""
-        return self.kinds.get(3 - seat, "nobody")
+        """Who sits opposite `seat`: "agent" or "person"."""
+        return self.kinds[3 - seat]
 
-    # -- change notification (long polling) -----------------------------------------
+    def _partner_words(self, seat: int) -> str:
+        return "the agent" if self.partner_kind(seat) == "agent" else "your partner"
+
     def _bump(self) -> None:
+        """Count a change and tell the study (which pushes the new views)."""
         self.version += 1
-        self._changed.notify_all()
+        if self.on_change is not None:
+            self.on_change(self)
 
-    def wait_for_change(self, since: int, timeout: float) -> None:
-        """Block until the room's version is past `since`, the room closes, or `timeout` seconds pass."""
-        deadline = time.monotonic() + timeout
-        with self.lock:
-            while self.version <= since and not self.closed:
-                left = deadline - time.monotonic()
-                if left <= 0:
-                    return
-                self._changed.wait(left)
+    def _check_step(self, payload: dict[str, Any], current: int, what: str) -> None:
+        """Refuse a move that does not answer the current step (a repeat, or one sent for a past try)."""
+        step = parse_int(payload.get("step"), "step", 0, MAX_STEP)
+        if step != current:
+            raise PlayError(409, f"this move answers {what} {step + 1}, but the session is at {what} {current + 1}: it was already played or is out of date")
 
     def close(self) -> None:
-        """Wake every waiting request (the server is stopping)."""
+        """Stop the room: no more agent moves (the session ended or the server is stopping)."""
         with self.lock:
             self.closed = True
-            self._changed.notify_all()
 
     # -- per game -------------------------------------------------------------------
-    def view(self, token: Any) -> dict[str, Any]:
-        """What the player holding `token` may see, as a JSON-able dict."""
+    @property
+    def finished(self) -> bool:
+        """Whether the whole session has been played."""
         raise NotImplementedError
 
-    def move(self, token: Any, payload: dict[str, Any]) -> dict[str, Any]:
-        """Play the move in `payload` for the player holding `token`; return their new view."""
+    def start(self) -> None:
+        """Begin (or, after `restore`, resume) play: the agent makes its first move if it is its turn."""
+
+    def view(self, seat: int) -> dict[str, Any]:
+        """What the player in `seat` may see, as a JSON-able dict."""
+        raise NotImplementedError
+
+    def move(self, seat: int, payload: dict[str, Any]) -> dict[str, Any]:
+        """Play the move in `payload` for the player in `seat`; return their new view."""
+        raise NotImplementedError
+
+    def restore(self) -> None:
+        """Replay what the database holds for this room (after a restart), writing nothing."""
         raise NotImplementedError
 
     def _common_view(self, seat: int) -> dict[str, Any]:
-        return {
-            "game": self.game,
-            "room": self.code,
-            "mode": self.mode,
-            "pair": self.pair,
-            "you": seat,
-            "partner": self.partner_kind(seat),
-            "version": self.version,
-        }
+        return {"game": self.game, "you": seat, "partner": self.partner_kind(seat), "version": self.version}

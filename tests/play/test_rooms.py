@@ -1,22 +1,26 @@
-"""Rooms: the study's schedule, hidden picks, turn checks, bad requests, and recordings that never break."""
+"""Rooms: the study's schedule, hidden picks, turn and step checks, writes before memory, replay after a restart."""
 
 from __future__ import annotations
 
+import io
 import json
-import shutil
+import sqlite3
+import time
 from pathlib import Path
 
+import numpy as np
+import pandas as pd
 import pytest
 
-from rllib_conv.common.user_study_table import DEFAULT_PATH, USER_STUDY_GOOD_ARMS, load_user_study
+from rllib_conv.common.user_study_table import USER_STUDY_GOOD_ARMS, load_user_study
 from rllib_conv.envs.bandit import user_study_prizes
 from rllib_conv.partners.blocks import PermutationPartner
-from rllib_conv.play import recording
-from rllib_conv.play.agent import bandit_oracle_prior, uniform_prior
+from rllib_conv.play.agent import AdaptiveAgent, bandit_oracle_prior, responder_prior, uniform_prior
 from rllib_conv.play.bandit_room import BanditRoom
-from rllib_conv.play.lobby import Lobby
-from rllib_conv.play.recording import BLOCKS_COLUMNS, CsvLog, SessionRecorder
-from rllib_conv.play.room import AgentSettings, PlayError
+from rllib_conv.play.blocks_room import BlocksRoom
+from rllib_conv.play.export import BLOCKS_COLUMNS, table_csv
+from rllib_conv.play.room import PlayError
+from rllib_conv.play.store import DB_FILE, Participant, Store
 
 PRIORS = {"train": bandit_oracle_prior(user_study_prizes(False)), "test": bandit_oracle_prior(user_study_prizes(True))}
 SCHEDULE = [(task, c, t) for task in ("train", "test") for c in "ABC" for t in range(1, 6)]
@@ -27,188 +31,167 @@ def good(task: str, context: str) -> tuple[int, ...]:
     return tuple(a + 1 for a in USER_STUDY_GOOD_ARMS[task]["ABC".index(context)])
 
 
-@pytest.fixture
-def out(tmp_path: Path) -> Path:
-    return tmp_path / "sessions"
+def open_store(path: Path, game: str = "bandit") -> Store:
+    store = Store(path / DB_FILE)
+    store.check_settings({"game": game}, {"human": ("human", "people"), "agent": ("agent", "oracle")})
+    return store
+
+
+def seat_pair(store: Store, condition: str = "human", agent_seat: int | None = None, game: str = "bandit") -> int:
+    """A stored room with its participants (the database's foreign keys want both); its pair number."""
+    n = len(store.participants())
+    seats = {1: f"p{n}", 2: f"p{n + 1}"} if agent_seat is None else {3 - agent_seat: f"p{n}"}
+    for pid in seats.values():
+        store.add_participant(Participant(pid, "t" + pid, condition, created=0.0, updated=0.0))
+    return store.open_room(game, condition, agent_seat, seats, 0.0)
+
+
+def exported(store: Store) -> pd.DataFrame:
+    """The study's tries as the export writes them, read back by the analysis' reader."""
+    path = store.path.parent / "export.csv"
+    path.write_text(table_csv(store))
+    return load_user_study(path)
 
 
 @pytest.fixture
-def lobby(out: Path) -> Lobby:
-    return Lobby("bandit", SessionRecorder(out))
+def store(tmp_path: Path):
+    s = open_store(tmp_path)
+    yield s
+    s.close()
 
 
 @pytest.fixture
-def agent_lobby(out: Path) -> Lobby:
-    return Lobby("bandit", SessionRecorder(out), AgentSettings(priors=PRIORS, ego_seat=1, greedy=True, seed=0))
+def room(store: Store) -> BanditRoom:
+    r = BanditRoom(seat_pair(store), store)
+    r.start()
+    return r
 
 
-def human_pair(lobby: Lobby) -> tuple[BanditRoom, str, str]:
-    room, t1, seat1 = lobby.create("human")
-    _, t2, seat2 = lobby.join(room.code.lower())  # codes are case-insensitive
-    assert (seat1, seat2) == (1, 2)
-    return room, t1, t2
+def agent_room(store: Store, seed: int = 0, greedy: bool = True) -> BanditRoom:
+    pair = seat_pair(store, "agent", agent_seat=1)
+    r = BanditRoom(pair, store, AdaptiveAgent(PRIORS["train"], greedy=greedy, seed=seed), 1, PRIORS)
+    r.start()
+    return r
 
 
-def test_two_people_play_the_whole_study_and_it_is_recorded_in_the_user_study_format(lobby: Lobby, out: Path) -> None:
-    room, t1, t2 = human_pair(lobby)
+def test_two_people_play_the_whole_study_and_it_is_stored_in_the_user_study_format(room: BanditRoom, store: Store) -> None:
     picks = []
     for i, (task, context, attempt) in enumerate(SCHEDULE):
-        view = room.view(t1)
-        assert (view["task"], view["context"], view["try"], view["played"]) == (task, context, attempt, i)
+        view = room.view(1)
+        assert (view["task"], view["context"], view["try"], view["played"], view["step"]) == (task, context, attempt, i, i)
         if (task, context, attempt) == ("test", "A", 1):
             assert view["status"].startswith("The Test task starts: the green arms have changed.")
         assert [a["prize"] > 0 for a in view["arms"]] == [a in good(task, context) for a in range(1, 5)]
         a1 = good(task, context)[0]
         a2 = good(task, context)[-1] if attempt == 1 else a1  # they disagree on try 1 of symmetric contexts
-        room.move(t1, {"arm": a1})
-        after = room.move(t2, {"arm": a2})
+        room.move(1, {"arm": a1, "step": i})
+        after = room.move(2, {"arm": a2, "step": i})
         picks.append((a1, a2))
         prize = 1.0 if a1 == a2 else 0.0
         assert after["last"] == {"task": task, "context": context, "try": attempt, "you": a2, "partner": a1, "prize": prize}
-    final = room.view(t2)
+    final = room.view(2)
     assert final["phase"] == "finished" and "Session finished" in final["status"] and final["played"] == 30
     assert final["score"] == sum(a == b for a, b in picks)
 
-    df = load_user_study(out / "bandit_human_human.csv")
+    df = exported(store)
     assert list(zip(df["task"], df["context"], df["try"])) == SCHEDULE
     assert list(zip(df["action_1"], df["action_2"])) == picks
-    assert (df["pair"] == room.pair).all() and room.pair == 1
+    assert (df["pair"] == room.pair).all() and (df["condition"] == "human").all()
     assert df["coordinated"].sum() == final["score"]
-    assert not (out / "bandit_human_agent.csv").exists()
-    session = json.loads((out / "sessions.jsonl").read_text())
-    assert session["pair"] == 1 and session["mode"] == "human" and session["room"] == room.code
 
 
-def test_a_pick_stays_hidden_until_both_have_picked(lobby: Lobby) -> None:
-    room, t1, t2 = human_pair(lobby)
-    mine = room.move(t1, {"arm": 3})
+def test_a_pick_stays_hidden_until_both_have_picked(room: BanditRoom) -> None:
+    mine = room.move(1, {"arm": 3, "step": 0})
     assert mine["your_choice"] == 3 and mine["phase"] == "waiting" and "Waiting for your partner" in mine["status"]
-    theirs = room.view(t2)
+    theirs = room.view(2)
     assert theirs["partner_chose"] is True and theirs["your_choice"] is None and theirs["phase"] == "choose"
     assert theirs["last"] is None and theirs["history"] == []
-    assert "3" not in json.dumps({k: v for k, v in theirs.items() if k not in ("arms", "version", "tries", "total", "pair", "room")})
+    assert "3" not in json.dumps({k: v for k, v in theirs.items() if k not in ("arms", "version", "tries", "total")})
 
 
-def snapshot(room: BanditRoom, out: Path) -> tuple:
-    csv = out / "bandit_human_human.csv"
-    return room.version, room.step, dict(room.picks), csv.read_bytes() if csv.exists() else None
+def snapshot(room: BanditRoom, store: Store) -> tuple:
+    return room.version, room.step, dict(room.picks), [tuple(r) for r in store.tries(room.pair)], [tuple(r) for r in store.picks(room.pair)]
 
 
 @pytest.mark.parametrize(
-    "request_, status, message",
+    "seat, payload, status, message",
     [
-        (lambda lb, r, t1, t2: lb.room("ZZZZ"), 404, "no room with code 'ZZZZ'"),
-        (lambda lb, r, t1, t2: lb.join("QQ"), 404, "no room with code 'QQ'"),
-        (lambda lb, r, t1, t2: r.move("not-a-token", {"arm": 1}), 403, "not a player of room"),
-        (lambda lb, r, t1, t2: r.move(None, {"arm": 1}), 403, "not a player of room"),
-        (lambda lb, r, t1, t2: r.move(t1, {"arm": 0}), 400, "arm must be an integer from 1 to 4, got 0"),
-        (lambda lb, r, t1, t2: r.move(t1, {"arm": 5}), 400, "arm must be an integer from 1 to 4, got 5"),
-        (lambda lb, r, t1, t2: r.move(t1, {"arm": "two"}), 400, "got 'two'"),
-        (lambda lb, r, t1, t2: r.move(t1, {"arm": 2.5}), 400, "got 2.5"),
-        (lambda lb, r, t1, t2: r.move(t1, {"arm": True}), 400, "got True"),
-        (lambda lb, r, t1, t2: r.move(t1, {}), 400, "got None"),
-        (lambda lb, r, t1, t2: r.move(t1, {"arm": 2}), 409, "you already picked arm 1 for this try"),
-        (lambda lb, r, t1, t2: lb.join(r.code), 409, "is full"),
-        (lambda lb, r, t1, t2: lb.create("robot"), 400, "mode must be 'agent'"),
-        (lambda lb, r, t1, t2: lb.create("agent", 1), 409, "has no trained agent"),
+        (1, {"arm": 0, "step": 1}, 400, "arm must be an integer from 1 to 4, got 0"),
+        (1, {"arm": 5, "step": 1}, 400, "arm must be an integer from 1 to 4, got 5"),
+        (1, {"arm": "two", "step": 1}, 400, "got 'two'"),
+        (1, {"arm": 2.5, "step": 1}, 400, "got 2.5"),
+        (1, {"arm": True, "step": 1}, 400, "got True"),
+        (1, {"arm": [1], "step": 1}, 400, "got [1]"),
+        (1, {"step": 1}, 400, "got None"),
+        (1, {"arm": "9" * 400, "step": 1}, 400, "got '9999"),
+        (2, {"arm": 1}, 400, "step must be an integer from 0 to"),
+        (2, {"arm": 1, "step": "x"}, 400, "step must be an integer"),
+        (2, {"arm": 1, "step": 0}, 409, "this move answers try 1, but the session is at try 2: it was already played"),
+        (2, {"arm": 1, "step": 5}, 409, "answers try 6, but the session is at try 2"),
+        (1, {"arm": 2, "step": 1}, 409, "you already picked arm 1 for this try"),
     ],
 )
-def test_bad_requests_are_refused_clearly_and_change_nothing(lobby: Lobby, out: Path, request_, status: int, message: str) -> None:
-    room, t1, t2 = human_pair(lobby)
-    room.move(t1, {"arm": 2})
-    room.move(t2, {"arm": 2})  # one try recorded
-    room.move(t1, {"arm": 1})  # player 1 has picked in try 2
-    before = snapshot(room, out)
+def test_bad_moves_are_refused_clearly_and_change_nothing(room: BanditRoom, store: Store, seat: int, payload: dict, status: int, message: str) -> None:
+    room.move(1, {"arm": 2, "step": 0})
+    room.move(2, {"arm": 2, "step": 0})  # one try stored
+    room.move(1, {"arm": 1, "step": 1})  # player 1 has picked in try 2
+    before = snapshot(room, store)
     with pytest.raises(PlayError) as err:
-        request_(lobby, room, t1, t2)
+        room.move(seat, payload)
     assert err.value.status == status and message in err.value.message
-    assert snapshot(room, out) == before
-    assert load_user_study(out / "bandit_human_human.csv")["try"].tolist() == [1]
+    assert snapshot(room, store) == before
 
 
-def test_no_move_before_the_partner_joins_and_none_after_the_end(lobby: Lobby, out: Path) -> None:
-    room, t1, _ = lobby.create("human")
-    with pytest.raises(PlayError, match=f"partner has not joined yet: give them the room code {room.code}"):
-        room.move(t1, {"arm": 1})
-    assert room.view(t1)["phase"] == "waiting_for_partner"
-    _, t2, _ = lobby.join(room.code)
-    for _ in SCHEDULE:
-        room.move(t1, {"arm": 1})
-        room.move(t2, {"arm": 1})
+def test_no_move_after_the_end(room: BanditRoom, store: Store) -> None:
+    for i in range(len(SCHEDULE)):
+        room.move(1, {"arm": 1, "step": i})
+        room.move(2, {"arm": 1, "step": i})
     with pytest.raises(PlayError, match="the session is over: all 30 tries") as err:
-        room.move(t1, {"arm": 1})
+        room.move(1, {"arm": 1, "step": 30})
     assert err.value.status == 409
-    assert len(load_user_study(out / "bandit_human_human.csv")) == 30
+    assert len(store.tries(room.pair)) == 30
 
 
-def test_a_failed_recording_plays_nothing_and_leaves_the_file_whole(lobby: Lobby, out: Path, monkeypatch) -> None:
-    room, t1, t2 = human_pair(lobby)
-    room.move(t1, {"arm": 1})
-    room.move(t2, {"arm": 1})
-    csv = out / "bandit_human_human.csv"
-    before = csv.read_bytes()
-
-    def crash(src, dst):
-        raise OSError(28, "No space left on device")
-
-    monkeypatch.setattr(recording.os, "replace", crash)
-    room.move(t1, {"arm": 1})
-    with pytest.raises(PlayError, match="could not record this try .*No space left.*pick again") as err:
-        room.move(t2, {"arm": 1})
-    assert err.value.status == 500
-    assert csv.read_bytes() == before and not list(out.glob(".*.tmp"))  # no half row, no litter
-    assert room.step == 1 and room.picks == {1: 0, 2: None}  # player 2 picks again
-    monkeypatch.undo()
-    room.move(t2, {"arm": 1})
-    assert load_user_study(csv)["try"].tolist() == [1, 2]
+def test_a_failed_write_plays_nothing_and_the_pick_can_be_made_again(room: BanditRoom, store: Store) -> None:
+    room.move(1, {"arm": 1, "step": 0})
+    before = snapshot(room, store)
+    store._db.execute("PRAGMA query_only = 1")  # every write now fails inside SQLite
+    with pytest.raises(PlayError, match="could not record your pick .*readonly.*please pick again") as err:
+        room.move(2, {"arm": 1, "step": 0})
+    assert err.value.status == 503
+    assert snapshot(room, store) == before and room.picks == {1: 0, 2: None}  # player 2 picks again
+    store._db.execute("PRAGMA query_only = 0")
+    room.move(2, {"arm": 1, "step": 0})
+    assert [r["step"] for r in store.tries(room.pair)] == [0]
 
 
-def test_an_invalid_row_never_reaches_the_file(tmp_path: Path) -> None:
-    log = CsvLog(tmp_path / "s.csv", ("pair", "task", "context", "try", "action_1", "action_2"), recording.validate_user_study)
-    log.append([{"pair": 1, "task": "train", "context": "A", "try": 1, "action_1": 1, "action_2": 1}])
-    before = log.path.read_bytes()
-    with pytest.raises(ValueError, match="action_2"):
-        log.append([{"pair": 1, "task": "train", "context": "A", "try": 2, "action_1": 1, "action_2": 9}])
-    with pytest.raises(ValueError, match="exactly the columns"):
-        log.append([{"pair": 1, "task": "train"}])
-    with pytest.raises(ValueError, match="repeats pair 1"):
-        log.append([{"pair": 1, "task": "train", "context": "A", "try": 1, "action_1": 2, "action_2": 2}])
-    assert log.path.read_bytes() == before
+def test_a_room_replays_from_the_database_after_a_restart(room: BanditRoom, store: Store, tmp_path: Path) -> None:
+    for i in range(7):
+        room.move(1, {"arm": 2, "step": i})
+        room.move(2, {"arm": 3 if i % 2 else 2, "step": i})
+    room.move(2, {"arm": 4, "step": 7})  # a pick waiting for the partner's
+    store.close()
+    reopened = open_store(tmp_path)
+    again = BanditRoom(room.pair, reopened)
+    again.restore()
+    again.start()
+    for seat in (1, 2):
+        assert {k: v for k, v in again.view(seat).items() if k != "version"} == {k: v for k, v in room.view(seat).items() if k != "version"}
+    after = again.move(1, {"arm": 4, "step": 7})
+    assert after["last"]["prize"] == 1.0 and after["played"] == 8  # the stored pick met its answer
+    reopened.close()
 
 
-def test_pairs_continue_after_existing_recordings_and_foreign_files_are_refused(tmp_path: Path) -> None:
-    out = tmp_path / "rec"
-    out.mkdir()
-    shutil.copy(DEFAULT_PATH, out / "bandit_human_human.csv")  # the paper's 23 pairs
-    lobby = Lobby("bandit", SessionRecorder(out))
-    room, t1, t2 = human_pair(lobby)
-    assert room.pair == 24
-    room.move(t1, {"arm": 1})
-    room.move(t2, {"arm": 1})
-    assert Lobby("bandit", SessionRecorder(out)).create("human")[0].pair == 25  # a restarted server too
-    assert set(load_user_study(out / "bandit_human_human.csv")["pair"]) == set(range(1, 25))
-
-    bad = tmp_path / "bad"
-    bad.mkdir()
-    (bad / "bandit_human_agent.csv").write_text("a,b\n1,2\n")
-    with pytest.raises(ValueError, match="bandit_human_agent.csv.*has columns \\['a', 'b'\\]"):
-        SessionRecorder(bad)
-    (bad / "bandit_human_agent.csv").write_text("pair,task,context,try,action_1,action_2\n1,train,Z,1,1,1\n")
-    with pytest.raises(ValueError, match="is not valid: .*column 'context'"):
-        SessionRecorder(bad)
-
-
-def test_agent_commits_first_adapts_to_the_person_and_carries_conventions_to_the_test_task(agent_lobby: Lobby, out: Path) -> None:
-    room, token, seat = agent_lobby.create("agent", 2)
-    assert seat == 2 and room.agent_seat == 1
+def test_agent_commits_first_adapts_to_the_person_and_carries_conventions_to_the_test_task(store: Store) -> None:
+    room = agent_room(store)
     person = {c: good("train", c)[-1] for c in "ABC"}  # the person's conventions: the right-most good arm
     person["test"] = {"A": good("test", "A")[0], "B": good("test", "B")[0], "C": person["C"]}  # Test-C keeps Train-C's
-    for task, context, _ in SCHEDULE:
-        view = room.view(token)
+    for i, (task, context, _) in enumerate(SCHEDULE):
+        view = room.view(2)
         assert view["partner_chose"] is True and view["partner"] == "agent"  # the agent picked before the person
         arm = person[context] if task == "train" else person["test"][context]
-        room.move(token, {"arm": arm})
-    df = load_user_study(out / "bandit_human_agent.csv")
+        room.move(2, {"arm": arm, "step": i})
+    df = exported(store)
     assert (df["action_2"] == [person[c] if t == "train" else person["test"][c] for t, c in zip(df["task"], df["context"])]).all()
     by = df.set_index(["task", "context", "try"])["coordinated"]
     # A greedy agent with the true marginals: rules from the start, the person's convention from try 2.
@@ -218,104 +201,155 @@ def test_agent_commits_first_adapts_to_the_person_and_carries_conventions_to_the
     assert all(by["test", "B", t] == 1 for t in range(2, 6))
 
 
-def test_agent_rooms_pick_seats_and_refuse_bad_ones(agent_lobby: Lobby) -> None:
-    room, token, seat = agent_lobby.create("agent", None)
-    assert seat == 2 and room.agent_seat == 1  # default: the seat opposite the trained ego
-    room, token, seat = agent_lobby.create("agent", 1)
-    assert room.agent_seat == 2 and room.kinds == {1: "person", 2: "agent"}
-    with pytest.raises(PlayError, match="seat must be an integer from 1 to 2, got 3"):
-        agent_lobby.create("agent", 3)
-    with pytest.raises(PlayError, match="only two-person rooms can be joined") as err:
-        agent_lobby.join(room.code)
-    assert err.value.status == 409
+def test_a_restored_agent_has_learnt_exactly_what_it_had(store: Store, tmp_path: Path) -> None:
+    room = agent_room(store, greedy=False)
+    for i in range(12):
+        room.move(2, {"arm": good(*["train", "ABC"[(i // 5) % 3]])[-1], "step": i})
+    store.close()
+    reopened = open_store(tmp_path)
+    again = BanditRoom(room.pair, reopened, AdaptiveAgent(PRIORS["train"], greedy=False, seed=99), 1, PRIORS)
+    again.restore()
+    again.start()
+    for context in range(3):
+        obs = np.eye(3, dtype=np.float32)[context]
+        assert np.allclose(again.agent.policy(obs, np.ones(4)), room.agent.policy(obs, np.ones(4)))
+    assert again.step == 12 and again.picks[1] is not None and again.picks[2] is None  # its hidden pick drawn again
+    reopened.close()
+
+
+def test_an_agent_room_needs_a_seat_and_both_priors(store: Store) -> None:
+    agent = AdaptiveAgent(uniform_prior)
+    with pytest.raises(ValueError, match="agent_seat must be 1 or 2, got 3"):
+        BanditRoom(1, store, agent, 3, PRIORS)
+    with pytest.raises(ValueError, match="agent_seat must be 1 or 2, got None"):
+        BlocksRoom(1, store, agent, None)
+    with pytest.raises(ValueError, match="a prior per task \\['train', 'test'\\], got \\['train'\\]"):
+        BanditRoom(1, store, agent, 1, {"train": uniform_prior})
 
 
 # --- blocks ----------------------------------------------------------------------------
 
 
-def test_blocks_turns_hidden_goal_and_recording(out: Path) -> None:
-    lobby = Lobby("blocks", SessionRecorder(out), games=2, seed=3)
-    room, t1, _ = lobby.create("human")
-    _, t2, _ = lobby.join(room.code)
-    assert room.view(t1)["goal"] is not None and room.view(t2)["goal"] is None  # only P1 sees the goal
-    with pytest.raises(PlayError, match="not your turn: move 1 is P1's") as err:
-        room.move(t2, {"action": 0})
+@pytest.fixture
+def blocks_store(tmp_path: Path):
+    s = open_store(tmp_path / "blocks", "blocks")
+    yield s
+    s.close()
+
+
+def blocks_rows(store: Store) -> list[str]:
+    return table_csv(store).splitlines()
+
+
+def test_blocks_turns_hidden_goal_and_recording(blocks_store: Store) -> None:
+    room = BlocksRoom(seat_pair(blocks_store, game="blocks"), blocks_store, games=2, seed=3)
+    room.start()
+    assert room.view(1)["goal"] is not None and room.view(2)["goal"] is None  # only P1 sees the goal
+    with pytest.raises(PlayError, match="not your turn: move 1 is P1's \\(your partner\\)") as err:
+        room.move(2, {"action": 0, "step": 0})
     assert err.value.status == 409
     with pytest.raises(PlayError, match="action must be an integer from 0 to 5, got 6"):
-        room.move(t1, {"action": 6})
-    assert room.moves == [] and room.version == 2
+        room.move(1, {"action": 6, "step": 0})
+    with pytest.raises(PlayError, match="answers move 2, but the session is at move 1"):
+        room.move(1, {"action": 0, "step": 1})
+    assert room.moves == [] and room.version == 0 and blocks_store.moves() == []
     red, blue = room.env.goal
-    for token, action in [(t1, red), (t2, blue), (t1, 5), (t2, 5), (t1, 5)]:
-        room.move(token, {"action": action})
-        assert room.view(t2)["moves"][-1]["move"] == len(room.moves)  # each move shown as it happens
-    assert not (out / "blocks" / "human_human.csv").exists()
-    after = room.move(t2, {"action": 5})
+    for step, (seat, action) in enumerate([(1, red), (2, blue), (1, 5), (2, 5), (1, 5)]):
+        room.move(seat, {"action": action, "step": step})
+        assert room.view(2)["moves"][-1]["move"] == len(room.moves)  # each move shown as it happens
+    assert len(blocks_store.moves()) == 5 and blocks_rows(blocks_store) == [",".join((*BLOCKS_COLUMNS, "condition"))]  # no finished game yet
+    after = room.move(2, {"action": 5, "step": 5})
     assert after["played"] == 1 and after["score"] == 20.0
     assert after["last"]["goal"] == room.results[0]["goal"] and after["last"]["score"] == 20.0  # revealed to P2
-    rows = (out / "blocks" / "human_human.csv").read_text().splitlines()
-    assert rows[0] == ",".join(BLOCKS_COLUMNS) and len(rows) == 7
-    assert rows[1] == f"{room.pair},train,1,1,1,{red},{red},{blue},20"
+    rows = blocks_rows(blocks_store)
+    assert len(rows) == 7 and rows[1] == f"{room.pair},train,1,1,1,{red},{red},{blue},20,human"
     assert after["game_no"] == 2 and after["moves"] == []
 
 
-def test_blocks_agent_p1_moves_first_and_learns_the_persons_answer(out: Path) -> None:
-    lobby = Lobby("blocks", SessionRecorder(out), AgentSettings(priors={"task": uniform_prior}, ego_seat=1, seed=0), games=12, agent_delay=0)
-    room, token, seat = lobby.create("agent", 2)
-    assert seat == 2 and len(room.moves) == 1 and room.moves[0][0] == 1  # the agent (P1) opened
+def test_blocks_replays_from_the_database(blocks_store: Store, tmp_path: Path) -> None:
+    pair = seat_pair(blocks_store, "agent", agent_seat=1, game="blocks")
+    room = BlocksRoom(pair, blocks_store, AdaptiveAgent(uniform_prior, seed=0), 1, games=3, seed=4)
+    room.start()
+    person = PermutationPartner("person", [1, 3, 0, 2])
+    while room.step < 15:
+        obs = room.env.observe("player_1")
+        room.move(2, {"action": person.act(obs["observation"], obs["action_mask"]), "step": room.step})
+    blocks_store.close()
+    reopened = open_store(tmp_path / "blocks", "blocks")
+    again = BlocksRoom(pair, reopened, AdaptiveAgent(uniform_prior, seed=5), 1, games=3, seed=4)
+    again.restore()
+    assert {k: v for k, v in again.view(2).items() if k != "version"} == {k: v for k, v in room.view(2).items() if k != "version"}
+    assert len(again.agent.partner) == len(room.agent.partner) > 0  # the same signals learnt from the same games
+    again.start()
+    assert again.step == 15 and again.turn == 2  # the person's move, then the agent answers as before
+    obs = again.env.observe("player_1")
+    assert again.move(2, {"action": person.act(obs["observation"], obs["action_mask"]), "step": 15})["step"] == 17
+    reopened.close()
+
+
+def test_blocks_agent_p1_moves_first_and_learns_the_persons_answer(blocks_store: Store) -> None:
+    pair = seat_pair(blocks_store, "agent", agent_seat=1, game="blocks")
+    room = BlocksRoom(pair, blocks_store, AdaptiveAgent(uniform_prior, seed=0), 1, games=12)
+    room.start()
+    assert len(room.moves) == 1 and room.moves[0][0] == 1  # the agent (P1) opened
     person = PermutationPartner("person", [1, 3, 0, 2])
     for _ in range(12 * 3):
         obs = room.env.observe("player_1")
-        view = room.move(token, {"action": person.act(obs["observation"], obs["action_mask"])})
+        view = room.move(2, {"action": person.act(obs["observation"], obs["action_mask"]), "step": room.step})
     assert view["phase"] == "finished" and len(room.results) == 12
     assert len(room.agent.partner) > 0  # the agent learnt signals from the person's answers
     with pytest.raises(PlayError, match="the session is over"):
-        room.move(token, {"action": 5})
+        room.move(2, {"action": 5, "step": room.step})
 
 
-def test_blocks_person_as_p1_gets_the_responder(out: Path) -> None:
-    lobby = Lobby("blocks", SessionRecorder(out), AgentSettings(priors={"task": uniform_prior}, ego_seat=1, seed=0), games=1, agent_delay=0)
-    room, token, seat = lobby.create("agent", 1)
-    assert seat == 1 and room.moves == []  # the person is P1 and opens
-    room.move(token, {"action": 2})
+def test_blocks_person_as_p1_gets_the_responder(blocks_store: Store) -> None:
+    pair = seat_pair(blocks_store, "agent", agent_seat=2, game="blocks")
+    room = BlocksRoom(pair, blocks_store, AdaptiveAgent(responder_prior, seed=0), 2, games=1)
+    room.start()
+    assert room.moves == []  # the person is P1 and opens
+    room.move(1, {"action": 2, "step": 0})
     assert room.moves[1][0] == 2 and room.moves[1][1] in (0, 1, 3)  # blue on a cell without red
-    room.move(token, {"action": 5})
+    room.move(1, {"action": 5, "step": 2})
     assert room.moves[3] == (2, 5)  # then it passes
-    view = room.move(token, {"action": 5})
-    assert view["phase"] == "finished" and len((out / "blocks" / "human_agent.csv").read_text().splitlines()) == 7
+    view = room.move(1, {"action": 5, "step": 4})
+    assert view["phase"] == "finished" and len(blocks_rows(blocks_store)) == 7
 
 
-def test_blocks_agent_moves_after_a_delay_and_stale_timers_do_nothing(out: Path) -> None:
-    import time
+def test_blocks_agent_moves_after_a_delay_and_stale_timers_do_nothing(blocks_store: Store) -> None:
+    pair = seat_pair(blocks_store, "agent", agent_seat=1, game="blocks")
+    room = BlocksRoom(pair, blocks_store, AdaptiveAgent(uniform_prior, seed=0), 1, games=1, agent_delay=0.05)
+    changes = []
+    room.on_change = lambda r: changes.append(r.version)
+    room.start()
+    assert room.moves == [] and room.view(2)["phase"] == "their_turn"
+    deadline = time.monotonic() + 5
+    while not changes and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert len(room.moves) == 1 and changes == [1]  # the agent's move is announced
+    room._agent_move(0)  # a late duplicate of the first timer
+    assert len(room.moves) == 1 and len(blocks_store.moves()) == 1
+    room.close()
 
-    lobby = Lobby("blocks", SessionRecorder(out), AgentSettings(priors={"task": uniform_prior}, ego_seat=1, seed=0), games=1, agent_delay=0.05)
-    room, token, _ = lobby.create("agent", 2)
-    assert room.moves == [] and room.view(token)["phase"] == "their_turn"
-    version = room.version
-    room.wait_for_change(version, timeout=5)  # the agent's move wakes long polls
-    assert len(room.moves) == 1 and room.version > version
-    room._agent_move(room.game_no, 0)  # a late duplicate of the first timer
-    assert len(room.moves) == 1
-    lobby.close()
-    time.sleep(0.01)
 
-
-def test_blocks_failed_recording_undoes_the_last_move(out: Path, monkeypatch) -> None:
-    lobby = Lobby("blocks", SessionRecorder(out), games=1, seed=1)
-    room, t1, _ = lobby.create("human")
-    _, t2, _ = lobby.join(room.code)
-    for token in (t1, t2, t1, t2, t1):
-        room.move(token, {"action": 5})
+def test_blocks_failed_write_undoes_the_move(blocks_store: Store) -> None:
+    room = BlocksRoom(seat_pair(blocks_store, game="blocks"), blocks_store, games=1, seed=1)
+    for step, seat in enumerate((1, 2, 1, 2, 1)):
+        room.move(seat, {"action": 5, "step": step})
     grid, version = room.env.grid.copy(), room.version
-
-    def crash(src, dst):
-        raise OSError(5, "Input/output error")
-
-    monkeypatch.setattr(recording.os, "replace", crash)
-    with pytest.raises(PlayError, match="could not record this game .*Input/output error.*play it again") as err:
-        room.move(t2, {"action": 2})
-    assert err.value.status == 500
+    blocks_store._db.execute("PRAGMA query_only = 1")
+    with pytest.raises(PlayError, match="could not record your move .*readonly.*play it again") as err:
+        room.move(2, {"action": 2, "step": 5})
+    assert err.value.status == 503
     assert len(room.moves) == 5 and room.env.move == 5 and room.turn == 2 and (room.env.grid == grid).all()
-    assert room.version == version and room.results == [] and not (out / "blocks" / "human_human.csv").exists()
-    monkeypatch.undo()
-    assert room.move(t2, {"action": 2})["phase"] == "finished"
-    assert len((out / "blocks" / "human_human.csv").read_text().splitlines()) == 7
+    assert room.version == version and room.results == [] and len(blocks_store.moves()) == 5
+    blocks_store._db.execute("PRAGMA query_only = 0")
+    assert room.move(2, {"action": 2, "step": 5})["phase"] == "finished"
+    assert len(pd.read_csv(io.StringIO(table_csv(blocks_store)))) == 6
+
+
+def test_a_stored_try_is_never_written_twice(store: Store) -> None:
+    pair = seat_pair(store)
+    row = {"task": "train", "context": "A", "try": 1, "action_1": 1, "action_2": 1}
+    store.add_try(pair, 0, row, 1.0, 0.0)
+    with pytest.raises(sqlite3.IntegrityError):
+        store.add_try(pair, 0, row, 1.0, 0.0)
