@@ -253,11 +253,18 @@ def _trial_id(trial: Path) -> str:
 
 
 def _run_label(run: str | Path) -> str:
-    """A short name of a RUNS argument: an experiment folder's name, or `<experiment>-<trial id>` for one trial."""
-    from rllib_conv.common.run_folders import CONFIG_FILE
+    """A short name of a RUNS argument: its experiment's name, then the Tune trial id and sub-folders below it.
+
+    `runs/tiny` -> `tiny`; `runs/tiny/EgoTrainable_6b1e2_00000_0_...` -> `tiny-6b1e2_00000`; a
+    folder inside a trial (one trained ego of several) adds its own name. A folder outside any
+    experiment (no experiment.yaml above it) is named by its parent and itself.
+    """
+    from rllib_conv.common.run_folders import SPEC_FILE
 
     path = Path(run).resolve()
-    return f"{path.parent.name}-{_trial_id(path)}" if (path / CONFIG_FILE).is_file() else path.name
+    experiment = next((p for p in (path, *path.parents) if (p / SPEC_FILE).is_file()), path.parent)
+    below = path.relative_to(experiment).parts if path != experiment else ()
+    return "-".join([experiment.name, *(_trial_id(Path(part)) for part in below)])
 
 
 def _name_from(runs: Sequence[str], extras: Sequence[str]) -> str:
@@ -267,14 +274,20 @@ def _name_from(runs: Sequence[str], extras: Sequence[str]) -> str:
     return _slug("-".join([head, *extras]))
 
 
-def _note_reuse(folder: Path, spec: dict[str, Any], trials: int | None = None) -> None:
+def _note_reuse(folder: Path, spec: dict[str, Any], egos: int | None = None) -> None:
     """Say so when `folder` already holds this very experiment: Tune continues it instead of starting over."""
-    from rllib_conv.common.run_folders import EVAL_FILE, SPEC_FILE
+    from rllib_conv.common.run_folders import EVAL_FILE, SPEC_FILE, trial_folders
 
     path = folder / SPEC_FILE
     if not path.is_file() or yaml.safe_load(path.read_text()) != spec:
         return  # nothing there, or another experiment (the pipeline refuses that one)
-    done = f" ({len(list(folder.glob(f'*/{EVAL_FILE}')))} of {trials} trials finished)" if trials else ""
+    done = ""
+    if egos:
+        try:
+            finished = sum((t / EVAL_FILE).is_file() for t in trial_folders(folder))
+        except ValueError:  # no trained ego written yet
+            finished = 0
+        done = f" ({finished} of {egos} trained egos finished)"
     print(f"note: {folder} already holds this experiment{done}: finished trials are kept, not run again, and unfinished ones continue; delete the folder to start over")
 
 
@@ -365,7 +378,7 @@ def _cmd_demo(args: argparse.Namespace) -> None:
     from rllib_conv.training.experiment import ExperimentConfig
 
     raw, _ = _load_config(config_file("bandit_modular.yaml"), ["name=demo", *args.set], ExperimentConfig)  # the demo's config
-    _note_reuse(Path(args.storage) / "demo", raw, trials=1)
+    _note_reuse(Path(args.storage) / "demo", raw, egos=1)
     from rllib_conv.pipelines.demo import demo
 
     demo(storage=args.storage, address=args.address, overrides=args.set)
@@ -375,7 +388,7 @@ def _cmd_demo(args: argparse.Namespace) -> None:
 def _cmd_train(args: argparse.Namespace) -> None:
     import pandas as pd
 
-    from rllib_conv.common.run_folders import CONFIG_FILE, SPEC_FILE, read_trial_config
+    from rllib_conv.common.run_folders import SPEC_FILE
     from rllib_conv.training.experiment import ExperimentConfig
 
     raw, variants = _load_config(args.config, args.set, ExperimentConfig)
@@ -383,15 +396,16 @@ def _cmd_train(args: argparse.Namespace) -> None:
     sweep = args.command == "sweep"
     if sweep and args.resume and not (folder / SPEC_FILE).is_file():
         raise ValueError(f"--resume: {str(folder)!r} holds no sweep to resume (run without --resume to start it)")
-    _note_reuse(folder, raw, trials=len(variants))
+    _note_reuse(folder, raw, egos=len(variants))
     from rllib_conv.pipelines.train import run
 
     results = run(raw, storage=args.storage, address=args.address, progress="table" if sweep else "lines", resume=sweep and args.resume)
     rows = []
     for r in results:
         m = r.metrics or {}
-        cfg = read_trial_config(r.path) if (Path(r.path) / CONFIG_FILE).is_file() else {}
-        row = {"trial": _trial_id(Path(r.path)), **{k: cfg.get(k) for k in ("population", "method", "lam", "seed")}}
+        cfg = r.config or {}  # the trial's values; unset ones are the schema's defaults
+        row = {"trial": _trial_id(Path(r.path))}
+        row |= {k: cfg.get(k, ExperimentConfig.model_fields[k].default) for k in ("population", "method", "lam", "seed")}
         row |= {"env_steps": m.get("env_steps"), "return": m.get("return_mean"), "marginal_L1": m.get("eval/marginal_distance/paper")}
         rows.append({**row, "error": "yes" if r.error else ""})
     print(_table(pd.DataFrame(rows)))

@@ -8,6 +8,7 @@ from __future__ import annotations
 import yaml
 
 from rllib_conv.cli import main
+from rllib_conv.common.run_folders import trial_folders
 
 
 def test_envs_and_partners_list(capsys) -> None:
@@ -77,6 +78,6 @@ def test_train_prints_a_summary_per_trial(ray_session, tmp_path, capsys) -> None
     rows = [line for line in out.splitlines() if "bandit-s" in line]
     assert len(rows) == 2 and "bandit-s1-hand" in rows[0] + rows[1] and "bandit-s2-hand" in rows[0] + rows[1]
     assert all(" modular " in row for row in rows)  # read from each trial's config.yaml, not None
-    assert len(list((tmp_path / "runs" / "tiny").glob("EgoTrainable_*/config.yaml"))) == 2
+    assert len(trial_folders(tmp_path / "runs" / "tiny")) == 2  # one trained ego per population
     assert out.splitlines()[-1] == f"results in {tmp_path / 'runs' / 'tiny'}"
     assert f"tensorboard --logdir {tmp_path / 'runs' / 'tiny'}" in out

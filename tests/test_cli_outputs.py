@@ -18,6 +18,7 @@ import yaml
 
 from rllib_conv import envs, partners
 from rllib_conv.cli import main
+from rllib_conv.common.run_folders import trial_folders
 from rllib_conv.pipelines.pair import pair
 from rllib_conv.pipelines.pair_config import PairConfig
 from rllib_conv.training.checkpoints import last_checkpoint
@@ -33,8 +34,9 @@ def tiny(ray_session, tmp_path_factory) -> dict[str, Path]:
     config = root / "tiny.yaml"
     config.write_text(yaml.safe_dump(TINY))
     assert main(["train", str(config), "--storage", str(root / "runs")]) == 0
-    (trial,) = (root / "runs" / "tiny").glob("EgoTrainable_*")
-    return {"root": root, "config": config, "storage": root / "runs", "trial": trial}
+    (tune_trial,) = (root / "runs" / "tiny").glob("EgoTrainable_*")
+    (trial,) = trial_folders(root / "runs" / "tiny")  # the trained ego: the Tune trial, or its one replica folder
+    return {"root": root, "config": config, "storage": root / "runs", "tune_trial": tune_trial, "trial": trial}
 
 
 def last_line(out: str) -> str:
@@ -42,12 +44,12 @@ def last_line(out: str) -> str:
 
 
 def test_train_again_says_the_run_is_reused_and_trains_nothing(tiny, capsys) -> None:
-    progress = (tiny["trial"] / "progress.csv").read_text()
+    progress = (tiny["tune_trial"] / "progress.csv").read_text()
     capsys.readouterr()
     assert main(["train", str(tiny["config"]), "--storage", str(tiny["storage"])]) == 0
     out = capsys.readouterr().out
-    assert f"note: {tiny['storage'] / 'tiny'} already holds this experiment (1 of 1 trials finished)" in out
-    assert (tiny["trial"] / "progress.csv").read_text() == progress
+    assert f"note: {tiny['storage'] / 'tiny'} already holds this experiment (1 of 1 trained egos finished)" in out
+    assert (tiny["tune_trial"] / "progress.csv").read_text() == progress
     assert last_line(out) == f"results in {tiny['storage'] / 'tiny'}"
     assert f"figure: {tiny['storage'] / 'tiny' / 'learning_curves.png'}" in out
 
@@ -67,7 +69,8 @@ def test_adapt_names_its_outputs_after_the_inputs_so_a_second_adaptation_does_no
     assert main(["adapt", str(tiny["trial"]), "--partner", "hand-test-1", *common]) == 0  # another experiment, another name
     second = capsys.readouterr().out
     csvs = sorted((tmp_path / "curves").glob("*.csv"))
-    assert len(csvs) == 2 and all(c.name.startswith(f"tiny-{tiny['trial'].name.split('_')[1]}_00000-hand-test-") for c in csvs)
+    run = "-".join(["tiny", "_".join(tiny["tune_trial"].name.split("_")[1:3]), *tiny["trial"].relative_to(tiny["tune_trial"]).parts])
+    assert len(csvs) == 2 and all(c.name.startswith(f"{run}-hand-test-") for c in csvs), csvs
     assert {last_line(first), last_line(second)} == {f"wrote {c}" for c in csvs}
     assert {pd.read_csv(c)["partner"].iloc[0] for c in csvs} == {"hand-test-0", "hand-test-1"}
     assert f"figure: {csvs[0].with_suffix('.png')}" in first + second
