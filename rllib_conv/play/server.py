@@ -1,263 +1,157 @@
-"""`rllib-conv play`: a small web server (standard library only) for people to play the games.
+"""Serving a study: uvicorn running the app of `app.py` on one socket, one process, one event loop.
 
-Serves the page (`static/index.html`, `app.js`, `style.css`) and a JSON API on 127.0.0.1:
-
-    GET  /api/info                                   game, whether an agent is available, seat names
-    POST /api/rooms          {"mode": "agent"|"human", "seat": 1|2}   -> {room, token, you, state}
-    POST /api/rooms/CODE/join                        -> {room, token, you, state}
-    GET  /api/rooms/CODE/state?token=T&since=V       the player's view; waits (long poll, up to
-                                                     20 s) until the room changes past version V
-    POST /api/rooms/CODE/move  {"token": T, "arm": 1..4} (bandit) or {"token": T, "action": 0..5} (blocks)
-
-Errors answer `{"error": "<sentence for the page>"}` with status 400 (bad value), 403 (not
-a player of that room), 404 (no such room or path), 409 (not now: out of turn, already
-picked, room full, session over) or 500 (recording failed; nothing was played).
-
-`build_lobby` turns the command-line arguments into a `lobby.Lobby` (loading the trained
-egos), `serve` runs the server until Ctrl-C.
+`StudyServer(settings, db, host=..., port=...)` opens the database and binds the socket
+at once (a busy port or a bad database is a ValueError before anything is served);
+`run()` serves until SIGINT/SIGTERM (graceful: open answers finish, live pages are
+closed), `start()`/`stop()` serve from a background thread (tests). One process per
+database: the rooms live in its memory, SQLite holds what they replay from.
 """
 
 from __future__ import annotations
 
-import json
+import asyncio
+import logging
+import secrets
+import socket
 import sys
 import threading
-import traceback
-from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
-from importlib import resources
 from pathlib import Path
-from typing import Any
-from urllib.parse import parse_qs, urlsplit
 
-from rllib_conv.envs.bandit import user_study_prizes
-from rllib_conv.play.agent import bandit_oracle_prior, uniform_prior
-from rllib_conv.play.ego_run import load_run, require_user_study
-from rllib_conv.play.lobby import Lobby
-from rllib_conv.play.recording import SessionRecorder
-from rllib_conv.play.room import DEFAULT_GAMES, GAMES, TRIES, AgentSettings, PlayError
+import uvicorn
+
+from rllib_conv.play.app import build_app
+from rllib_conv.play.conditions import StudySettings
+from rllib_conv.play.limits import MAX_HEADER_BYTES, REQUEST_TIMEOUT_S, LimitedH11Protocol
+from rllib_conv.play.store import Store
+from rllib_conv.play.study import Study
 
 HOST = "127.0.0.1"
-LONG_POLL_S = 20.0
-MAX_BODY = 16_384
-STATIC_TYPES = {".html": "text/html; charset=utf-8", ".js": "text/javascript; charset=utf-8", ".css": "text/css; charset=utf-8"}
-STATIC_FILES = ("index.html", "app.js", "style.css")
-TEST_PRIORS = ("oracle", "uniform")
+MAX_CONNECTIONS = 1000  # beyond this uvicorn answers 503 at once
+WS_MAX_MESSAGE = 4096  # the page sends no messages; anything bigger closes the socket
+START_TIMEOUT_S = 60.0
 
 
-def static_file(name: str) -> bytes:
-    """The bytes of packaged static file `name` (one of STATIC_FILES)."""
-    return (resources.files("rllib_conv.play") / "static" / name).read_bytes()
+def bind(host: str, port: int) -> socket.socket:
+    """A listening TCP socket on host:port (0: a free port); ValueError naming --host/--port if it cannot be had."""
+    try:
+        infos = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)
+    except socket.gaierror as exc:
+        raise ValueError(f"--host {host!r}: not an address of this machine ({exc})") from None
+    family, kind, proto, _, address = infos[0]
+    # The protocol number matters: asyncio sets TCP_NODELAY only on IPPROTO_TCP sockets, and
+    # without it every answer waits 40 ms for a delayed ACK between its head and body.
+    sock = socket.socket(family, kind, proto)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # a restart may reuse the port at once
+    try:
+        sock.bind(address)
+        sock.listen(1024)
+    except OSError as exc:
+        sock.close()
+        raise ValueError(f"--port {port}: cannot listen on {host}:{port} ({exc.strerror or exc}); choose another port (0 picks a free one)") from None
+    sock.setblocking(False)
+    return sock
 
 
-class PlayHandler(BaseHTTPRequestHandler):
-    """One HTTP request: static files or the JSON API of `server.lobby`."""
+class StudyServer:
+    """One study served on host:port from database `db` (module docstring).
 
-    server: "PlayServer"
-    protocol_version = "HTTP/1.0"  # one request per connection: long polls never block a kept-alive socket
+    `admin_token` None draws one; `request_timeout_s` bounds how long a client may take to
+    send a request's headers, and its body.
+    """
 
-    # -- plumbing -------------------------------------------------------------------
-    def log_message(self, format: str, *args: Any) -> None:
-        if self.server.verbose:
-            super().log_message(format, *args)
-
-    def _send(self, status: int, body: bytes, content_type: str) -> None:
-        self.send_response(status)
-        self.send_header("Content-Type", content_type)
-        self.send_header("Content-Length", str(len(body)))
-        self.send_header("Cache-Control", "no-store")
-        self.end_headers()
-        if self.command != "HEAD":
-            self.wfile.write(body)
-
-    def _json(self, status: int, payload: dict[str, Any]) -> None:
-        self._send(status, json.dumps(payload).encode(), "application/json")
-
-    def _body(self) -> dict[str, Any]:
+    def __init__(
+        self,
+        settings: StudySettings,
+        db: str | Path,
+        *,
+        host: str = HOST,
+        port: int = 8000,
+        admin_token: str | None = None,
+        verbose: bool = False,
+        request_timeout_s: float = REQUEST_TIMEOUT_S,
+    ) -> None:
+        self.settings = settings
+        self.request_timeout_s = request_timeout_s
+        self.sock = bind(host, port)  # first: a busy port creates no study folder
         try:
-            length = int(self.headers.get("Content-Length") or 0)
+            self.store = Store(db)
         except ValueError:
-            raise PlayError(400, "bad Content-Length header") from None
-        if length > MAX_BODY:
-            raise PlayError(400, f"request body too large ({length} bytes; at most {MAX_BODY})")
-        raw = self.rfile.read(length) if length else b"{}"
-        try:
-            body = json.loads(raw or b"{}")
-        except (json.JSONDecodeError, UnicodeDecodeError):
-            raise PlayError(400, "the request body must be a JSON object") from None
-        if not isinstance(body, dict):
-            raise PlayError(400, f"the request body must be a JSON object, got {type(body).__name__}")
-        return body
-
-    def _route(self, method: str) -> None:
-        url = urlsplit(self.path)
-        parts = [p for p in url.path.split("/") if p]
-        query = {k: v[-1] for k, v in parse_qs(url.query).items()}
-        try:
-            if method == "GET" and not parts:
-                return self._send(200, static_file("index.html"), STATIC_TYPES[".html"])
-            if method == "GET" and len(parts) == 2 and parts[0] == "static" and parts[1] in STATIC_FILES:
-                return self._send(200, static_file(parts[1]), STATIC_TYPES[Path(parts[1]).suffix])
-            if parts[:1] != ["api"]:
-                raise PlayError(404, f"no page {url.path!r}")
-            self._json(200, self._api(method, parts[1:], query))
-        except PlayError as err:
-            self._json(err.status, {"error": err.message})
-        except Exception as exc:  # a bug must not kill the server; the page shows a sentence, stderr the trace
-            traceback.print_exc(file=sys.stderr)
-            self._json(500, {"error": f"internal error: {type(exc).__name__}: {exc}"})
-
-    def _api(self, method: str, parts: list[str], query: dict[str, str]) -> dict[str, Any]:
-        lobby = self.server.lobby
-        if method == "GET" and parts == ["info"]:
-            return lobby.info()
-        if method == "POST" and parts == ["rooms"]:
-            body = self._body()
-            room, token, seat = lobby.create(body.get("mode"), body.get("seat"))
-            return {"room": room.code, "token": token, "you": seat, "state": room.view(token)}
-        if len(parts) == 3 and parts[0] == "rooms":
-            room = lobby.room(parts[1])
-            if method == "POST" and parts[2] == "join":
-                self._body()
-                room, token, seat = lobby.join(parts[1])
-                return {"room": room.code, "token": token, "you": seat, "state": room.view(token)}
-            if method == "GET" and parts[2] == "state":
-                token = query.get("token")
-                room.seat_of(token)  # refuse strangers before waiting
-                if "since" in query:
-                    try:
-                        since = int(query["since"])
-                    except ValueError:
-                        raise PlayError(400, f"since must be an integer version, got {query['since']!r}") from None
-                    room.wait_for_change(since, self.server.long_poll_s)
-                return room.view(token)
-            if method == "POST" and parts[2] == "move":
-                body = self._body()
-                return room.move(body.get("token"), body)
-        raise PlayError(404, f"no API endpoint {method} /api/{'/'.join(parts)}")
-
-    def do_GET(self) -> None:  # noqa: N802 (http.server's naming)
-        self._route("GET")
-
-    def do_HEAD(self) -> None:  # noqa: N802
-        self._route("GET")
-
-    def do_POST(self) -> None:  # noqa: N802
-        self._route("POST")
-
-
-class PlayServer(ThreadingHTTPServer):
-    """The HTTP server of one lobby; one thread per request, none of them keeps the process alive."""
-
-    daemon_threads = True
-    block_on_close = False  # long polls must not delay shutdown
-
-    def __init__(self, lobby: Lobby, port: int = 8000, host: str = HOST, verbose: bool = False, long_poll_s: float = LONG_POLL_S) -> None:
-        self.lobby = lobby
+            self.sock.close()
+            raise
+        self.admin_token = admin_token or secrets.token_urlsafe(16)
         self.verbose = verbose
-        self.long_poll_s = long_poll_s
-        try:
-            super().__init__((host, port), PlayHandler)
-        except OSError as exc:
-            raise ValueError(f"--port {port}: cannot listen on {host}:{port} ({exc.strerror or exc}); choose another port (0 picks a free one)") from None
+        self.study: Study | None = None
+        self._server: uvicorn.Server | None = None
+        self._thread: threading.Thread | None = None
 
     @property
     def url(self) -> str:
-        """The address people open, e.g. http://127.0.0.1:8000/."""
-        host, port = self.server_address[:2]
-        return f"http://{host}:{port}/"
+        """The participants' address, e.g. http://127.0.0.1:8000/."""
+        host, port = self.sock.getsockname()[:2]
+        return f"http://{host if ':' not in host else f'[{host}]'}:{port}/"
 
-    def start(self) -> threading.Thread:
-        """Serve in a background thread (tests); stop with `stop()`."""
-        self._thread = threading.Thread(target=self.serve_forever, name="play-server", daemon=True)
+    @property
+    def admin_url(self) -> str:
+        """The admin page's address with its token."""
+        return f"{self.url}admin?token={self.admin_token}"
+
+    async def serve(self) -> None:
+        """Build the study (restoring open rooms) on the running loop and serve until told to stop."""
+        loop = asyncio.get_running_loop()
+        self.study = Study(self.settings, self.store, call_later=loop.call_later)
+        config = uvicorn.Config(
+            build_app(self.study, self.admin_token, request_timeout_s=self.request_timeout_s),
+            http=type("StudyH11Protocol", (LimitedH11Protocol,), {"header_timeout_s": self.request_timeout_s}),
+            ws_max_size=WS_MAX_MESSAGE,
+            h11_max_incomplete_event_size=MAX_HEADER_BYTES,
+            limit_concurrency=MAX_CONNECTIONS,
+            timeout_keep_alive=5,
+            timeout_graceful_shutdown=5,
+            log_level="info" if self.verbose else "warning",
+            access_log=self.verbose,
+            lifespan="on",
+        )
+        self._server = uvicorn.Server(config)
+        await self._server.serve(sockets=[self.sock])
+
+    def run(self) -> None:
+        """Serve in this thread until SIGINT or SIGTERM."""
+        if "torch" in sys.modules:
+            import torch
+
+            torch.set_num_threads(1)  # one request at a time; torch's thread pool would only compete
+        if not self.verbose:
+            logging.getLogger("uvicorn.error").setLevel(logging.WARNING)
+        try:
+            asyncio.run(self.serve())
+        finally:
+            self.store.close()
+
+    def start(self) -> None:
+        """Serve from a background thread; return once the server answers (or raise what stopped it)."""
+        failed: list[BaseException] = []
+
+        def target() -> None:
+            try:
+                asyncio.run(self.serve())
+            except BaseException as exc:  # handed to the caller of start()
+                failed.append(exc)
+
+        self._thread = threading.Thread(target=target, name="study-server", daemon=True)
         self._thread.start()
-        return self._thread
+        while not (self._server is not None and self._server.started) and self._thread.is_alive():
+            self._thread.join(0.02)
+        if failed:
+            raise failed[0]
+        if not self._thread.is_alive():
+            raise RuntimeError("the study server stopped while starting")
 
     def stop(self) -> None:
-        """Stop serving (if `start`ed), wake long polls, close the socket."""
-        self.lobby.close()
-        if getattr(self, "_thread", None) is not None:
-            self.shutdown()  # only valid while serve_forever runs in another thread
+        """Stop a server `start`ed in the background and close the database."""
+        if self._server is not None:
+            self._server.should_exit = True
+        if self._thread is not None:
+            self._thread.join(START_TIMEOUT_S)
             self._thread = None
-        self.server_close()
-
-
-def build_lobby(
-    run: str | Path | None = None,
-    *,
-    game: str | None = None,
-    test_run: str | Path | None = None,
-    test_prior: str = "oracle",
-    out: str | Path = "play_sessions",
-    step_size: float = 3.0,
-    greedy: bool = False,
-    seed: int = 0,
-    games: int = DEFAULT_GAMES,
-    tries: int = TRIES,
-    agent_delay: float = 0.6,
-) -> Lobby:
-    """The lobby for `rllib-conv play` (see its --help); ValueError naming the bad argument.
-
-    Bandit: `run` must be an ego trained on the user-study Train task; its task module is
-    the agent's prior there. On the Test task the prior is `test_run`'s task module (an ego
-    trained on the Test task), or without it `test_prior`: "oracle" = the Test task's true
-    marginals (uniform over each context's good arms: the rules the person sees on the page),
-    "uniform" = uniform over the 4 arms (an agent that learns the new rules only from the person).
-    Blocks: `run` is an ego trained on blocks; its task (original or new) is the session's.
-    Without `run` only two-person rooms are offered.
-    """
-    if game is not None and game not in GAMES:
-        raise ValueError(f"--game must be one of {list(GAMES)}, got {game!r}")
-    if test_prior not in TEST_PRIORS:
-        raise ValueError(f"--test-prior must be one of {list(TEST_PRIORS)}, got {test_prior!r}")
-    if games < 1:
-        raise ValueError(f"--games must be at least 1, got {games}")
-    if test_run is not None and run is None:
-        raise ValueError("--test-run needs RUN (the Train-task ego) as well")
-    recorder = SessionRecorder(out)
-    if run is None:
-        return Lobby(game or "bandit", recorder, None, games=games, tries=tries, seed=seed, agent_delay=agent_delay)
-
-    ego = load_run(run, "RUN")
-    game = game or ego.game
-    if ego.game != game:
-        raise ValueError(f"RUN {str(ego.trial)!r} was trained on {ego.game!r}, but --game is {game!r}")
-    if game not in GAMES:
-        raise ValueError(f"RUN {str(ego.trial)!r} was trained on {game!r}; play supports {list(GAMES)}")
-    info: dict[str, Any] = {"run": str(ego.trial), "method": ego.exp.method, "lam": ego.exp.lam, "population": ego.population.name}
-    new_task = False
-    if game == "bandit":
-        require_user_study(ego, new_task=False, what="RUN")
-        if test_run is not None:
-            test_ego = load_run(test_run, "--test-run")
-            require_user_study(test_ego, new_task=True, what="--test-run")
-            test = test_ego.prior
-            info["test_run"] = str(test_ego.trial)
-        else:
-            test = bandit_oracle_prior(user_study_prizes(new_task=True)) if test_prior == "oracle" else uniform_prior
-            info["test_prior"] = test_prior
-        priors = {"train": ego.prior, "test": test}
-    else:
-        if test_run is not None:
-            raise ValueError("--test-run is for the bandit's Test task; a blocks session plays RUN's own task")
-        new_task = bool(ego.env_config.get("new_task", False))
-        priors = {"task": ego.prior}
-    info.update({"step_size": step_size, "greedy": greedy, "seed": seed})
-    settings = AgentSettings(priors=priors, ego_seat=ego.ego_seat, step_size=step_size, greedy=greedy, seed=seed, description=ego.describe())
-    return Lobby(game, recorder, settings, new_task=new_task, games=games, tries=tries, seed=seed, agent_delay=agent_delay, run_info=info)
-
-
-def serve(lobby: Lobby, port: int = 8000, verbose: bool = False) -> None:
-    """Serve `lobby` on 127.0.0.1:`port` until Ctrl-C, printing the address first."""
-    import torch
-
-    torch.set_num_threads(1)  # one request at a time per thread; torch's pool would only compete
-    server = PlayServer(lobby, port, verbose=verbose)
-    mode = "with the agent or two people" if lobby.agent else "two people (no RUN: no agent)"
-    print(f"rllib-conv play: {lobby.game}, {mode}; recording to {lobby.recorder.out}/", flush=True)
-    print(f"open {server.url} in a browser (Ctrl-C stops)", flush=True)
-    try:
-        server.serve_forever()
-    except KeyboardInterrupt:
-        pass
-    finally:
-        server.stop()  # serve_forever has returned here: stop() only closes
+        self.sock.close()
+        self.store.close()

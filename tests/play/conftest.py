@@ -1,10 +1,15 @@
-"""Shared by the play tests: a small ego trained on the user-study Train task, and headless chromium."""
+"""Shared by the play tests: a small trained ego, study servers (in a thread or a process), headless chromium."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 import pytest
+
+from rllib_conv.play.conditions import StudySettings
+from rllib_conv.play.server import StudyServer
+from rllib_conv.play.store import DB_FILE
+from tests.play.servers import ADMIN_TOKEN, StudyProcess
 
 CHROMIUM = "/usr/bin/chromium"
 
@@ -34,6 +39,37 @@ def study_ego(ray_session, tmp_path_factory) -> Path:
     results = run(raw, storage=tmp_path_factory.mktemp("play-egos"))
     assert not results.errors
     return Path(results[0].path)
+
+
+@pytest.fixture
+def serve(tmp_path: Path):
+    """Start study servers in background threads, each on a free port and its own database; stop them at the end."""
+    servers: list[StudyServer] = []
+
+    def start(settings: StudySettings, db: Path | None = None, **options) -> StudyServer:
+        db = db or tmp_path / f"study{len(servers)}" / DB_FILE
+        srv = StudyServer(settings, db, port=0, admin_token=ADMIN_TOKEN, **options)
+        srv.start()
+        servers.append(srv)
+        return srv
+
+    yield start
+    for srv in servers:
+        srv.stop()
+
+
+@pytest.fixture
+def study_process():
+    """Start `rllib-conv play` processes; each is killed at the end if still running."""
+    procs: list[StudyProcess] = []
+
+    def start(args: list[str]) -> StudyProcess:
+        procs.append(StudyProcess(args))
+        return procs[-1]
+
+    yield start
+    for proc in procs:
+        proc.close()
 
 
 @pytest.fixture(scope="module")

@@ -1,106 +1,146 @@
-"""The HTTP layer: static page, JSON API, error statuses, long polling, command-line checks."""
+"""The web layer on a real uvicorn: pages, the JSON API and its errors, live views, the admin API, the command line."""
 
 from __future__ import annotations
 
+import asyncio
+import contextlib
+import csv
+import io
 import json
-import threading
-import time
-import urllib.error
-import urllib.request
 from pathlib import Path
-from typing import Any
 
+import httpx
 import pytest
+import websockets
 
-from rllib_conv.cli import build_parser, main
-from rllib_conv.play.lobby import Lobby
-from rllib_conv.play.recording import SessionRecorder
-from rllib_conv.play.server import PlayServer, build_lobby
+from rllib_conv.cli import main
+from rllib_conv.play.server import StudyServer
+from tests.play.servers import ADMIN_TOKEN, oracle_study
 
 
 @pytest.fixture
-def server(tmp_path: Path):
-    srv = PlayServer(Lobby("bandit", SessionRecorder(tmp_path / "rec")), port=0, long_poll_s=5.0)
-    srv.start()
-    yield srv
-    srv.stop()
+def server(serve) -> StudyServer:
+    return serve(oracle_study("agent,human"))
 
 
-def call(srv: PlayServer, method: str, path: str, body: Any = None, raw: bytes | None = None) -> tuple[int, dict[str, Any]]:
-    data = raw if raw is not None else (None if body is None else json.dumps(body).encode())
-    req = urllib.request.Request(srv.url.rstrip("/") + path, method=method, data=data, headers={"Content-Type": "application/json"})
-    try:
-        with urllib.request.urlopen(req, timeout=10) as r:
-            return r.status, json.loads(r.read())
-    except urllib.error.HTTPError as e:
-        return e.code, json.loads(e.read())
+@pytest.fixture
+def client(server: StudyServer):
+    with httpx.Client(base_url=server.url, timeout=10) as c:
+        yield c
 
 
-def test_page_and_static_files_are_served(server: PlayServer) -> None:
-    with urllib.request.urlopen(server.url, timeout=10) as r:
-        html = r.read().decode()
-        assert r.headers["Content-Type"].startswith("text/html")
-    assert '<script src="/static/app.js">' in html and 'id="status"' in html
-    for name, kind in [("app.js", "text/javascript"), ("style.css", "text/css")]:
-        with urllib.request.urlopen(server.url + "static/" + name, timeout=10) as r:
-            assert r.headers["Content-Type"].startswith(kind) and len(r.read()) > 500
-    status, body = call(server, "GET", "/static/../server.py")  # only the listed files, never a path
-    assert status == 404 and body["error"].startswith("no page")
-    assert call(server, "GET", "/static/secret.txt")[0] == 404
+def enrol(client: httpx.Client, pid: str) -> dict:
+    r = client.post("/api/participants", json={"consent": True, "participant": pid})
+    assert r.status_code == 200, r.text
+    return r.json()
 
 
-def test_api_errors_are_json_sentences(server: PlayServer) -> None:
-    assert call(server, "GET", "/api/info")[1]["game"] == "bandit"
-    status, body = call(server, "POST", "/api/rooms", raw=b"{not json")
-    assert (status, body) == (400, {"error": "the request body must be a JSON object"})
-    status, body = call(server, "POST", "/api/rooms", [1, 2])
-    assert status == 400 and "got list" in body["error"]
-    assert call(server, "POST", "/api/rooms/NOPE/move", {"token": "x", "arm": 1}) == (404, {"error": "no room with code 'NOPE': check the code your partner gave you"})
-    assert call(server, "GET", "/api/whatever")[0] == 404
-    _, created = call(server, "POST", "/api/rooms", {"mode": "human"})
-    status, body = call(server, "GET", f"/api/rooms/{created['room']}/state?token=wrong")
-    assert status == 403 and "not a player of room" in body["error"]
-    status, body = call(server, "GET", f"/api/rooms/{created['room']}/state?token={created['token']}&since=x")
-    assert status == 400 and "since must be an integer" in body["error"]
+def test_pages_and_static_files_are_served_with_safe_headers(client: httpx.Client) -> None:
+    for path, kind, marker in [("/", "text/html", 'id="consent"'), ("/admin", "text/html", 'id="conditions"'), ("/static/app.js", "text/javascript", "WebSocket"), ("/static/style.css", "text/css", ".arm")]:
+        r = client.get(path)
+        assert r.status_code == 200 and r.headers["content-type"].startswith(kind) and marker in r.text, path
+        assert r.headers["x-content-type-options"] == "nosniff" and r.headers["referrer-policy"] == "no-referrer"
+        assert "default-src 'self'" in r.headers["content-security-policy"]
+    for path in ("/static/secret.txt", "/static/../server.py", "/static/%2e%2e%2fstore.py"):
+        r = client.get(path)
+        assert r.status_code == 404 and r.json()["error"].startswith("no page"), path
+    assert client.head("/").status_code == 200
 
 
-def test_long_poll_answers_as_soon_as_the_room_changes(server: PlayServer) -> None:
-    _, created = call(server, "POST", "/api/rooms", {"mode": "human"})
-    code, token, version = created["room"], created["token"], created["state"]["version"]
-    answer: dict[str, Any] = {}
+def test_api_errors_are_json_sentences_with_the_right_status(client: httpx.Client) -> None:
+    assert client.get("/api/info").json()["game"] == "bandit"
+    cases = [
+        (client.post("/api/participants", content=b"{not json", headers={"content-type": "application/json"}), 400, "the request body must be a JSON object"),
+        (client.post("/api/participants", json=[1, 2]), 400, "must be a JSON object, got list"),
+        (client.post("/api/participants", content=b"consent=true", headers={"content-type": "application/x-www-form-urlencoded"}), 415, "must be JSON"),
+        (client.post("/api/participants", json={"participant": "p1"}), 400, "consent must be true"),
+        (client.post("/api/participants", json={"consent": True, "participant": {"id": 1}}), 400, "participant must be an id"),
+        (client.post("/api/move", json={"token": "forged", "arm": 1, "step": 0}), 403, "unknown or missing participant token"),
+        (client.get("/api/session"), 403, "unknown or missing participant token"),
+        (client.get("/api/whatever"), 404, "no page '/api/whatever'"),
+        (client.put("/api/move", json={}), 405, "PUT is not allowed on /api/move; use POST"),
+        (client.delete("/api/participants"), 405, "use POST"),
+        (client.get("/api/move"), 405, "GET is not allowed"),
+    ]
+    for r, status, message in cases:
+        assert r.status_code == status and message in r.json()["error"], (r.request.method, r.request.url, r.text)
+    assert cases[8][0].headers["allow"] == "POST"
 
-    def poll() -> None:
-        start = time.monotonic()
-        answer["state"] = call(server, "GET", f"/api/rooms/{code}/state?token={token}&since={version}")[1]
-        answer["seconds"] = time.monotonic() - start
 
-    waiter = threading.Thread(target=poll)
-    waiter.start()
-    time.sleep(0.3)
-    assert "state" not in answer  # still waiting: nothing changed yet
-    call(server, "POST", f"/api/rooms/{code}/join", {})
-    waiter.join(timeout=5)
-    assert answer["state"]["partner"] == "person" and answer["state"]["phase"] == "choose"
-    assert 0.25 < answer["seconds"] < 3
+def test_a_session_over_http_with_retries_that_never_play_twice(client: httpx.Client) -> None:
+    p = None
+    for i in range(4):  # balanced: two of four in the agent condition
+        p = enrol(client, f"p{i}")
+        if p["view"]["partner"] == "agent":
+            break
+    token, view = p["token"], p["view"]
+    assert view["phase"] == "choose" and view["step"] == 0
+    first = client.post("/api/move", json={"token": token, "step": 0, "arm": 1})
+    assert first.status_code == 200 and first.json()["played"] == 1
+    again = client.post("/api/move", json={"token": token, "step": 0, "arm": 1})  # the retry of a lost answer
+    assert again.status_code == 409 and "already played" in again.json()["error"]
+    assert client.get(f"/api/session?token={token}").json()["played"] == 1
+    assert enrol(client, p["participant"])["token"] == token  # enrolling again resumes
 
 
-def test_command_line_arguments_are_checked(tmp_path: Path, capsys) -> None:
-    args = build_parser().parse_args(["play", "--port", "0"])
-    assert args.run is None and args.test_prior == "oracle" and args.out == "play_sessions"
-    assert main(["play", str(tmp_path / "missing"), "--out", str(tmp_path / "o")]) == 2
-    assert "RUN " in capsys.readouterr().err
-    with pytest.raises(ValueError, match="--test-run needs RUN"):
-        build_lobby(None, test_run=str(tmp_path), out=tmp_path / "o")
-    with pytest.raises(ValueError, match="--test-prior must be one of"):
-        build_lobby(None, test_prior="psychic", out=tmp_path / "o")
+def test_live_views_are_pushed_and_strangers_are_refused(server: StudyServer, client: httpx.Client) -> None:
+    people = [enrol(client, f"h{i}") for i in range(4)]
+    a, b = [p for p in people if p["view"]["phase"] == "waiting_for_partner"]
+    live = server.url.replace("http://", "ws://") + "api/live?token="
+
+    async def talk() -> list[str]:
+        async with websockets.connect(live + a["token"]) as wa:
+            seen = [json.loads(await wa.recv())["phase"]]  # the view at once
+            async with websockets.connect(live + b["token"]) as wb:
+                seen.append(json.loads(await wa.recv())["phase"])  # a is told it has a partner
+                await wb.recv()
+                await asyncio.to_thread(client.post, "/api/move", json={"token": b["token"], "step": 0, "arm": 3})
+                view = json.loads(await wa.recv())
+                seen.append(f"partner_chose={view['partner_chose']}")
+        with pytest.raises(websockets.InvalidStatus) as err:
+            async with websockets.connect(live + "forged"):
+                pass
+        seen.append(str(err.value.response.status_code))
+        return seen
+
+    assert asyncio.run(talk()) == ["waiting_for_partner", "choose", "partner_chose=True", "403"]
+
+
+def test_the_admin_api_needs_the_token_and_serves_counts_and_exports(server: StudyServer, client: httpx.Client) -> None:
+    for i in range(4):
+        p = enrol(client, f"p{i}")
+        if p["view"]["partner"] == "agent":
+            client.post("/api/move", json={"token": p["token"], "step": 0, "arm": 1})
+    r = client.get("/api/admin/status")
+    assert r.status_code == 401 and "needs the admin token" in r.json()["error"]
+    assert client.get("/api/admin/status", headers={"Authorization": "Bearer wrong-token"}).status_code == 403
+    status = client.get("/api/admin/status", headers={"Authorization": f"Bearer {ADMIN_TOKEN}"}).json()
+    by = {c["name"]: c for c in status["conditions"]}
+    assert (by["agent"]["playing"], by["agent"]["tries"], by["human"]["waiting"]) == (2, 2, 2)
+    assert "oracle task module" in by["agent"]["description"] and status["participants"] == 4
+    r = client.get(f"/api/admin/export.csv?token={ADMIN_TOKEN}&condition=agent")
+    assert r.headers["content-disposition"] == 'attachment; filename="bandit_agent.csv"'
+    rows = list(csv.DictReader(io.StringIO(r.text)))
+    assert len(rows) == 2 and {row["condition"] for row in rows} == {"agent"}
+    assert client.get(f"/api/admin/export.csv?token={ADMIN_TOKEN}&condition=robots").status_code == 400
+    people = list(csv.DictReader(io.StringIO(client.get(f"/api/admin/participants.csv?token={ADMIN_TOKEN}").text)))
+    assert sorted(p["id"] for p in people) == ["p0", "p1", "p2", "p3"]
+
+
+def test_command_line_arguments_are_checked(tmp_path: Path, capsys, server: StudyServer) -> None:
+    bad = [
+        (["play", str(tmp_path / "missing"), "--out", str(tmp_path / "o")], "RUN "),
+        (["play", "--conditions", "ours,human", "--out", str(tmp_path / "o")], "--conditions: 'ours' is neither"),
+        (["play", "--agent", "agent=oracle", "--test-prior", "psychic"], "invalid choice"),
+        (["play", "--agent", "agent=oracle", "--consent", str(tmp_path / "nope.txt"), "--out", str(tmp_path / "o")], "--consent"),
+        (["play", "--condition", "agent", "--out", str(tmp_path / "o")], "--condition is for `play export DB`"),
+        (["play", "--port", str(server.sock.getsockname()[1]), "--out", str(tmp_path / "o")], "--port"),
+    ]
+    for argv, message in bad:
+        with pytest.raises(SystemExit) if "invalid choice" in message else contextlib.nullcontext():
+            assert main(argv) == 2, argv
+        assert message in capsys.readouterr().err, argv
     (tmp_path / "file").write_text("x")
-    with pytest.raises(ValueError, match="--out .* is a file"):
-        build_lobby(None, out=tmp_path / "file")
-    lobby = build_lobby(None, game="blocks", out=tmp_path / "o")
-    assert lobby.game == "blocks" and lobby.agent is None
-
-
-def test_a_busy_port_is_a_clear_error(server: PlayServer) -> None:
-    port = server.server_address[1]
-    with pytest.raises(ValueError, match=f"--port {port}: cannot listen"):
-        PlayServer(server.lobby, port=port)
+    assert main(["play", "--out", str(tmp_path / "file")]) == 2
+    assert "is a file; expected the study folder" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()  # nothing was created by a refused start

@@ -1,10 +1,13 @@
-// rllib-conv play: the page. Talks to the JSON API of rllib_conv/play/server.py and renders
-// the room's view as the server sends it (the server decides what each player may see).
+// The participants' page: consent, instructions, play, completion code. Talks to the JSON API
+// of rllib_conv/play/app.py; the server decides what each player may see, the page renders it.
 "use strict";
 
 const $ = (id) => document.getElementById(id);
-const session = { info: null, room: null, token: null, version: -1, poll: 0, errorVersion: null };
+const session = { info: null, participant: null, token: null, version: -1, socket: null, errorVersion: null, view: null };
 const CELLS = ["top-left", "top-right", "bottom-left", "bottom-right"];
+// Where recruitment platforms put the participant's id in the study link.
+const ID_PARAMS = ["participant", "PROLIFIC_PID", "workerId"];
+const STORE_KEY = "rllib-conv-study";
 
 // --- talking to the server ------------------------------------------------------------
 async function api(method, path, body) {
@@ -17,17 +20,19 @@ async function api(method, path, body) {
   try {
     res = await fetch(path, opts);
   } catch (e) {
-    throw new Error("Cannot reach the server (" + e.message + "). Is `rllib-conv play` still running?");
+    throw new Error("Cannot reach the study server (" + e.message + "). Please try again in a moment.");
   }
   let data = null;
   try { data = await res.json(); } catch (e) { /* not JSON: reported below */ }
   if (!res.ok || data === null) {
-    throw new Error(data && data.error ? data.error : `The server answered ${res.status} ${res.statusText}.`);
+    const err = new Error(data && data.error ? data.error : `The server answered ${res.status} ${res.statusText}.`);
+    err.status = res.status;
+    throw err;
   }
   return data;
 }
 
-// An error stays until the player acts again or the room moves on (then it is out of date).
+// An error stays until the player acts again or the session moves on (then it is out of date).
 function showError(message) {
   const box = $("error");
   box.textContent = message;
@@ -41,7 +46,6 @@ function clearError() {
   session.errorVersion = null;
 }
 
-// Every user action: clear the old error, show the new one if the request is refused.
 async function guarded(action) {
   clearError();
   try { await action(); } catch (e) { showError(e.message); }
@@ -49,15 +53,36 @@ async function guarded(action) {
 
 const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
 
-// --- home page ------------------------------------------------------------------------
+function show(which) {
+  for (const id of ["consent", "instructions", "game"]) $(id).hidden = id !== which;
+}
+
+// --- consent, instructions, enrolment ---------------------------------------------------
 const RULES = {
-  bandit: "Each try shows a context (A, B or C) and four arms; green arms carry a prize. You and your partner each " +
+  bandit: "Each round shows a context (A, B or C) and four arms; green arms carry a prize. You and your partner each " +
     "pick an arm without seeing the other's pick, and win the prize only if you both pick the same green arm. " +
-    "Both picks are shown after every try. Five tries per context; first the Train task, then the Test task.",
+    "Both picks are shown after every round. Five rounds per context; first the Train task, then the Test task, " +
+    "where the green arms change.",
   blocks: "P1 (red) sees the goal grid, P2 (blue) does not. Moves alternate, P1 first, six moves in all: place your " +
     "block on a cell (it moves there, pushing out whatever was on that cell), remove it, or pass. Each block on its goal " +
     "cell at the end scores 10 points. The goal is shown to both once the game is over.",
 };
+
+function urlParticipant() {
+  const params = new URLSearchParams(location.search);
+  for (const name of ID_PARAMS) {
+    if (params.get(name)) return params.get(name);
+  }
+  return null;
+}
+
+function saved() {
+  try { return JSON.parse(localStorage.getItem(STORE_KEY) || "null"); } catch (e) { return null; }
+}
+
+function save(participant, token) {
+  try { localStorage.setItem(STORE_KEY, JSON.stringify({ participant, token })); } catch (e) { /* private mode: resume by id only */ }
+}
 
 async function init() {
   let info;
@@ -68,89 +93,76 @@ async function init() {
     return;
   }
   session.info = info;
-  $("title").textContent = info.game === "bandit" ? "Collaborative bandit" : "Block placing";
-  $("subtitle").textContent = info.game === "bandit"
-    ? "The user study of “On the Critical Role of Conventions in Adaptive Human-AI Collaboration”"
-    : (info.new_task ? "The 2x2 block placing game (new task: red goes on a cell that is empty in the goal)" : "The 2x2 block placing game");
+  $("subtitle").textContent = info.game === "bandit" ? "Pick the same prize as your partner." : "Build the goal grid with your partner.";
+  const consent = $("consent-text");
+  consent.replaceChildren(...info.consent.split(/\n\s*\n/).map((text) => {
+    const p = document.createElement("p");
+    p.textContent = text;
+    return p;
+  }));
   $("rules").textContent = RULES[info.game];
-  $("agent-card").hidden = !info.agent;
-  if (info.agent) {
-    $("agent-desc").textContent = "Agent: " + info.agent_description + ". It adapts to you as you play.";
-    const box = $("seat-choice");
-    const preferred = 3 - info.ego_seat;  // the seat opposite the trained ego's
-    info.seats.forEach((name, i) => {
-      const label = document.createElement("label");
-      const input = document.createElement("input");
-      input.type = "radio";
-      input.name = "seat";
-      input.value = String(i + 1);
-      input.checked = i + 1 === preferred;
-      label.append(input, " " + name);
-      box.append(label);
-    });
-  }
-  $("start-agent").onclick = () => guarded(async () => {
-    const seat = Number(document.querySelector("input[name=seat]:checked").value);
-    const r = await api("POST", "/api/rooms", { mode: "agent", seat });
-    enter(r.room, r.token, r.state);
-  });
-  $("create-room").onclick = () => guarded(async () => {
-    const r = await api("POST", "/api/rooms", { mode: "human" });
-    enter(r.room, r.token, r.state);
-  });
-  $("join-form").onsubmit = (ev) => {
-    ev.preventDefault();
-    guarded(() => joinRoom($("join-code").value));
-  };
-  const saved = new URLSearchParams(location.hash.slice(1));
-  if (saved.get("room") && saved.get("token")) {
-    enter(saved.get("room"), saved.get("token"), null);  // a reload keeps the seat
-  } else {
-    show("lobby");
-  }
-}
+  $("agree").onchange = () => { $("to-instructions").disabled = !$("agree").checked; };
+  $("to-instructions").onclick = () => show("instructions");
+  $("start").onclick = () => guarded(enrol);
 
-async function joinRoom(code) {
-  code = String(code).trim().toUpperCase();
-  if (!code) throw new Error("Type the room code your partner gave you.");
-  const r = await api("POST", `/api/rooms/${encodeURIComponent(code)}/join`, {});
-  enter(r.room, r.token, r.state);
-}
-
-function show(which) {
-  $("lobby").hidden = which !== "lobby";
-  $("game").hidden = which !== "game";
-}
-
-function enter(room, token, state) {
-  session.room = room;
-  session.token = token;
-  session.version = -1;
-  history.replaceState(null, "", `#room=${room}&token=${encodeURIComponent(token)}`);
-  show("game");
-  if (state) render(state);
-  session.poll += 1;
-  pollLoop(session.poll);
-}
-
-// Long polling: the server answers when the room changes (or after a while with no change).
-async function pollLoop(generation) {
-  while (generation === session.poll) {
+  // A page reloaded (or reopened) in the same browser resumes without asking again.
+  const wanted = urlParticipant();
+  const mine = saved();
+  if (mine && mine.token && (!wanted || wanted === mine.participant)) {
     try {
-      const s = await api("GET", `/api/rooms/${session.room}/state?token=${encodeURIComponent(session.token)}&since=${session.version}`);
-      if (generation !== session.poll) return;
-      render(s);
-      if (s.phase === "finished") return;
+      const view = await api("GET", `/api/session?token=${encodeURIComponent(mine.token)}`);
+      enter(mine.participant, mine.token, view);
+      return;
     } catch (e) {
-      showError(e.message);
-      await sleep(1500);
+      if (e.status !== 403) { showError(e.message); return; }
     }
   }
+  show("consent");
+}
+
+async function enrol() {
+  const body = { consent: $("agree").checked };
+  const id = urlParticipant();
+  if (id) body.participant = id;
+  const r = await api("POST", "/api/participants", body);
+  save(r.participant, r.token);
+  enter(r.participant, r.token, r.view);
+}
+
+function enter(participant, token, view) {
+  session.participant = participant;
+  session.token = token;
+  session.version = -1;
+  show("game");
+  render(view);
+  listen();
+}
+
+// --- live views over a WebSocket ---------------------------------------------------------
+// The server pushes the view after every change; a lost connection is reopened (the server
+// may have restarted) and the first message brings the page up to date.
+function listen() {
+  let delay = 500;
+  const open = () => {
+    const scheme = location.protocol === "https:" ? "wss" : "ws";
+    const ws = new WebSocket(`${scheme}://${location.host}/api/live?token=${encodeURIComponent(session.token)}`);
+    session.socket = ws;
+    ws.onopen = () => { delay = 500; $("offline").hidden = true; };
+    ws.onmessage = (ev) => render(JSON.parse(ev.data));
+    ws.onclose = () => {
+      if (session.view && (session.view.phase === "finished" || session.view.phase === "ended")) return;
+      $("offline").hidden = false;
+      setTimeout(open, delay);
+      delay = Math.min(delay * 2, 5000);
+    };
+  };
+  open();
 }
 
 async function sendMove(payload) {
   await guarded(async () => {
-    const s = await api("POST", `/api/rooms/${session.room}/move`, { token: session.token, ...payload });
+    const step = session.view ? session.view.step : 0;
+    const s = await api("POST", "/api/move", { token: session.token, step, ...payload });
     render(s);
   });
 }
@@ -164,21 +176,27 @@ function render(s) {
   if (s.version < session.version) return;  // an older answer overtaken by a newer one
   if (session.errorVersion !== null && s.version > session.errorVersion) clearError();
   session.version = s.version;
+  session.view = s;
   document.body.dataset.phase = s.phase;
   document.body.dataset.played = String(s.played);
   document.body.dataset.version = String(s.version);
-  $("room-code").textContent = s.room;
-  $("you").textContent = s.game === "bandit" ? `Player ${s.you}` : `P${s.you} (${s.colour})`;
-  $("partner").textContent = s.partner === "agent" ? "the agent" : s.partner === "person" ? "another person" : "not joined yet";
+  const seated = s.you !== undefined;
+  $("you").textContent = !seated ? "waiting" : s.game === "bandit" ? `Player ${s.you}` : `P${s.you} (${s.colour})`;
+  $("partner").textContent = s.partner === "agent" ? "an AI agent" : s.partner === "person" ? "another participant" : "not yet found";
   $("status").textContent = s.status;
-  // Once the session is over only the outcome and the history remain on the page.
-  const over = s.phase === "finished";
-  $("bandit").hidden = s.game !== "bandit" || over;
-  $("blocks").hidden = s.game !== "blocks" || over;
+  const over = s.phase === "finished" || s.phase === "ended";
+  $("done").hidden = !s.completion_code;
+  $("completion-code").textContent = s.completion_code || "";
+  $("bandit").hidden = s.game !== "bandit" || over || !seated;
+  $("blocks").hidden = s.game !== "blocks" || over || !seated;
+  $("score").hidden = !seated;
+  $("last").hidden = !seated;
+  $("history-box").hidden = !seated;
   if (over && !$("history-box").dataset.opened) {
     $("history-box").open = true;
     $("history-box").dataset.opened = "1";
   }
+  if (!seated) return;
   if (s.game === "bandit") renderBandit(s); else renderBlocks(s);
 }
 
@@ -269,5 +287,5 @@ function renderBlocks(s) {
 }
 
 // For scripted tests and the curious: the same calls the buttons make.
-window.play = { session, sendMove, joinRoom: (code) => guarded(() => joinRoom(code)) };
+window.play = { session, sendMove, api };
 init();
