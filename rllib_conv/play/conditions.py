@@ -107,14 +107,14 @@ class StudySettings:
 
 
 def parse_named(values: Sequence[str], option: str, default_name: str | None = None) -> dict[str, str]:
-    """`NAME=VALUE` arguments as a dict; a bare VALUE takes `default_name` (ValueError if none or repeated)."""
+    """`NAME=VALUE` arguments as a dict; a bare VALUE takes `default_name` (ValueError if there is none, or a name repeats)."""
     out: dict[str, str] = {}
     for value in values:
         name, sep, rest = value.partition("=")
-        if not sep:
-            if default_name is None:
-                raise ValueError(f"{option} expects NAME=VALUE, got {value!r}")
-            name, rest = default_name, value
+        if default_name is not None and (not sep or not NAME.match(name)):
+            name, rest = default_name, value  # a bare VALUE (a path may hold '=' itself: .../seed=0)
+        elif not sep:
+            raise ValueError(f"{option} expects NAME=VALUE, got {value!r}")
         if not NAME.match(name):
             raise ValueError(f"{option}: condition name {name!r} must be 1-32 lower-case letters, digits, '-' or '_', starting with a letter")
         if name in out:

@@ -249,6 +249,14 @@ class Store:
             db.executemany("INSERT OR IGNORE INTO settings (key, value) VALUES (?, ?)", [(k, str(v)) for k, v in settings.items()])
             db.executemany("INSERT OR IGNORE INTO conditions (name, kind, description) VALUES (?, ?, ?)", [(n, k, d) for n, (k, d) in conditions.items()])
 
+    def count_start(self) -> int:
+        """Count one more server start on this database; return how many there have been (1 for a new study)."""
+        with self._write() as db:
+            row = db.execute("SELECT value FROM settings WHERE key = 'starts'").fetchone()
+            starts = int(row[0]) + 1 if row else 1
+            db.execute("INSERT OR REPLACE INTO settings (key, value) VALUES ('starts', ?)", (str(starts),))
+            return starts
+
     def settings(self) -> dict[str, str]:
         """The study's stored settings (game, seed, ...) as text; empty for a new file."""
         return {r["key"]: r["value"] for r in self._read("SELECT key, value FROM settings")}

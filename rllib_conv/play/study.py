@@ -47,6 +47,7 @@ log = logging.getLogger(__name__)
 PARTICIPANT_ID = re.compile(r"^[A-Za-z0-9._-]{1,64}$")
 CODE_ALPHABET = "ABCDEFGHJKLMNPQRSTUVWXYZ23456789"  # no 0/O, 1/I: codes are read and typed
 CODE_LENGTH = 8
+VERSIONS_PER_START = 10**9
 END_REASONS = {
     "no_partner": "no other participant arrived in time to play with you",
     "idle": "nobody moved for a long time",
@@ -75,7 +76,8 @@ class Study:
         self._activity: dict[int, float] = {}  # pair -> time of its last change
         self._listeners: dict[str, list[Listener]] = {}
         self._present: dict[str, int] = {}  # participant id -> open live connections
-        self.version = 0  # grows with every change: views carry it so a page can drop stale ones
+        # Grows with every change, across restarts too: views carry it so a page drops stale ones.
+        self.version = store.count_start() * VERSIONS_PER_START
         self._lock = threading.RLock()
         self._rng = np.random.default_rng([settings.seed, len(self.participants)])
         self._restore()

@@ -22,6 +22,7 @@ def study_ego(ray_session, tmp_path_factory) -> Path:
     played with; the adaptation claims are tested on the agent with known priors.
     """
     from rllib_conv.common import config_files
+    from rllib_conv.common.run_folders import trial_folders
     from rllib_conv.pipelines.train import run
     from rllib_conv.training.experiment import ExperimentConfig
 
@@ -38,7 +39,7 @@ def study_ego(ray_session, tmp_path_factory) -> Path:
     )
     results = run(raw, storage=tmp_path_factory.mktemp("play-egos"))
     assert not results.errors
-    return Path(results[0].path)
+    return trial_folders(results[0].path)[0]  # the trained ego's folder, wherever the trial keeps it
 
 
 @pytest.fixture

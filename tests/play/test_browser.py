@@ -1,4 +1,4 @@
-"""End to end in a real headless browser: scripted people play through the page; the CSVs must follow.
+"""End to end in headless Chromium: consent to completion code in both conditions, the admin page, restarts, blocks.
 
 Each page is screenshotted under the test's tmp_path (agent_session.png, person_1.png, ...).
 """
@@ -8,34 +8,22 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+import httpx
 import pytest
 from playwright.sync_api import Page, expect
 
 from rllib_conv.common.user_study_table import load_user_study
-from rllib_conv.play.lobby import Lobby
-from rllib_conv.play.recording import SessionRecorder
+from rllib_conv.play.conditions import build_settings
+from rllib_conv.play.export import table_csv
 from rllib_conv.play.room import CELL_NAMES
-from rllib_conv.play.server import PlayServer, build_lobby
+from rllib_conv.play.server import StudyServer
+from rllib_conv.play.store import DB_FILE
+from tests.play.servers import ADMIN_TOKEN, oracle_study
 
 SCHEDULE = [(task, c, t) for task in ("train", "test") for c in "ABC" for t in range(1, 6)]
 TIMEOUT_MS = 15_000
+INTERNALS = ("modular", "lam 0.5", "EgoTrainable", "bandit-user-study", "oracle", "step size", "condition")
 expect.set_options(timeout=TIMEOUT_MS)  # the machine has 2 busy cores
-
-
-@pytest.fixture
-def serve():
-    """Start servers for a test; stop them (after its pages are closed) at the end."""
-    servers: list[PlayServer] = []
-
-    def start(lobby: Lobby) -> PlayServer:
-        srv = PlayServer(lobby, port=0)
-        srv.start()
-        servers.append(srv)
-        return srv
-
-    yield start
-    for srv in servers:
-        srv.stop()
 
 
 @pytest.fixture
@@ -44,7 +32,7 @@ def pages(browser):
     contexts, errors = [], []
 
     def new_page() -> Page:
-        context = browser.new_context(viewport={"width": 1000, "height": 900})
+        context = browser.new_context(viewport={"width": 1000, "height": 900}, accept_downloads=True)
         contexts.append(context)
         page = context.new_page()
         page.set_default_timeout(TIMEOUT_MS)
@@ -61,28 +49,34 @@ def good_arms(page: Page) -> list[int]:
     return [int(a) for a in page.locator(".arm.good").evaluate_all("els => els.map(e => e.dataset.arm)")]
 
 
-def room_code(page: Page) -> str:
-    """The room code once the page shows it (it is filled in when the server answers)."""
-    expect(page.locator("#room-code")).to_have_text(re.compile(r"^[A-Z2-9]{4}$"))
-    return page.locator("#room-code").inner_text()
-
-
 def wait_played(page: Page, n: int) -> None:
     page.wait_for_selector(f'body[data-played="{n}"]', state="attached")
 
 
-def test_person_plays_a_full_study_session_with_the_agent(study_ego: Path, serve, pages, tmp_path: Path) -> None:
-    out = tmp_path / "rec"
-    srv = serve(build_lobby(study_ego, out=out, agent_delay=0))
+def consent_and_start(page: Page, url: str) -> None:
+    """Open the study link, agree to the consent form, read the instructions, start."""
+    page.goto(url)
+    expect(page.locator("#consent")).to_be_visible()
+    expect(page.locator("#to-instructions")).to_be_disabled()  # not before agreeing
+    page.check("#agree")
+    page.click("#to-instructions")
+    expect(page.locator("#rules")).to_contain_text("green arms")
+    page.click("#start")
+    expect(page.locator("#game")).to_be_visible()
+
+
+def assert_no_internals(page: Page) -> None:
+    text = page.content()
+    assert not [w for w in INTERNALS if w in text], [w for w in INTERNALS if w in text]
+
+
+def test_a_participant_plays_the_agent_from_consent_to_completion_code(study_ego: Path, serve, pages, tmp_path: Path) -> None:
+    srv = serve(build_settings(study_ego, consent="Study ABC.\n\nWe record your choices only."))
     page = pages()
-    page.goto(srv.url)
-    expect(page.locator("#agent-card")).to_be_visible()
-    expect(page.locator("#agent-desc")).to_contain_text("modular ego (lam 0.5) trained with bandit-user-study")
-    page.check("input[name=seat][value='2']")
-    page.click("#start-agent")
+    consent_and_start(page, srv.url + "?PROLIFIC_PID=5f1e2d3c4b5a69788796a5b4&STUDY_ID=x")
     expect(page.locator("#status")).to_have_text("Your turn: pick an arm.")
     expect(page.locator("#where")).to_have_text("Train task · context A · try 1 of 5")
-    expect(page.locator("#you")).to_have_text("Player 2")
+    expect(page.locator("#partner")).to_have_text("an AI agent")
     expect(page.locator("#last")).to_have_text("No try played yet.")
 
     picks = []
@@ -92,36 +86,45 @@ def test_person_plays_a_full_study_session_with_the_agent(study_ego: Path, serve
         arm = good_arms(page)[0]  # a consistent person: the left-most green arm
         page.click(f'.arm[data-arm="{arm}"]')
         wait_played(page, i + 1)
-        last = page.locator("#last").inner_text()
-        assert f"context {context}, try {attempt}): you pulled arm {arm}, the agent pulled arm" in last
+        assert f"context {context}, try {attempt}): you pulled arm {arm}, the agent pulled arm" in page.locator("#last").inner_text()
         picks.append(arm)
+        if i == 0:
+            assert_no_internals(page)
     expect(page.locator("#status")).to_contain_text("Session finished")
+    expect(page.locator("#done")).to_be_visible()
+    code = page.locator("#completion-code").inner_text()
+    assert re.fullmatch(r"[A-Z2-9]{8}", code)
     expect(page.locator("#arms .arm")).to_have_count(0)
+    assert_no_internals(page)
     shot = tmp_path / "agent_session.png"
     page.screenshot(path=shot, full_page=True)
     assert shot.stat().st_size > 10_000
-    assert pages.errors == []
 
-    df = load_user_study(out / "bandit_human_agent.csv")
+    page.reload()  # the same browser comes back: no consent again, the same code
+    expect(page.locator("#completion-code")).to_have_text(code)
+    assert pages.errors == []
+    df = load_user_study_from(srv)
     assert list(zip(df["task"], df["context"], df["try"])) == SCHEDULE
     assert df["action_2"].tolist() == picks and (df["pair"] == 1).all()
     score = page.locator("#score").inner_text()
     assert score.startswith(f"Score: {int(df['coordinated'].sum())}") and "30 of 30 tries played" in score
 
 
-def test_two_people_play_a_session_in_one_room(serve, pages, tmp_path: Path) -> None:
-    out = tmp_path / "rec"
-    srv = serve(Lobby("bandit", SessionRecorder(out)))
+def load_user_study_from(srv: StudyServer):
+    path = srv.store.path.parent / "export.csv"
+    path.write_text(table_csv(srv.store))
+    return load_user_study(path)
+
+
+def test_two_participants_are_paired_and_play_to_their_codes(serve, pages, tmp_path: Path) -> None:
+    srv = serve(oracle_study("human"))
     one, two = pages(), pages()
-    one.goto(srv.url)
-    expect(one.locator("#agent-card")).to_be_hidden()  # no RUN: people only
-    one.click("#create-room")
-    expect(one.locator("#status")).to_contain_text("Waiting for your partner to join")
-    code = room_code(one)
-    two.goto(srv.url)
-    two.fill("#join-code", code.lower())
-    two.click("#join-room")
-    expect(one.locator("#partner")).to_have_text("another person")  # player 1's page learns it by itself
+    consent_and_start(one, srv.url + "?participant=alice")
+    expect(one.locator("#status")).to_contain_text("Waiting for another participant to join")
+    expect(one.locator("#partner")).to_have_text("not yet found")
+    consent_and_start(two, srv.url + "?participant=bob")
+    expect(one.locator("#partner")).to_have_text("another participant")  # alice's page learns it by itself
+    expect(one.locator("#you")).to_have_text("Player 1")
 
     picks = []
     for i, (_, _, attempt) in enumerate(SCHEDULE):
@@ -136,65 +139,82 @@ def test_two_people_play_a_session_in_one_room(serve, pages, tmp_path: Path) -> 
         for page in (one, two):
             wait_played(page, i + 1)
         assert f"you pulled arm {a2}, your partner pulled arm {a1}" in two.locator("#last").inner_text()
-        assert f"you pulled arm {a1}, your partner pulled arm {a2}" in one.locator("#last").inner_text()
         picks.append((a1, a2))
+    codes = []
     for n, page in enumerate((one, two), start=1):
         expect(page.locator("#status")).to_contain_text("Session finished")
-        shot = tmp_path / f"person_{n}.png"
-        page.screenshot(path=shot, full_page=True)
-        assert shot.stat().st_size > 10_000
+        codes.append(page.locator("#completion-code").inner_text())
+        page.screenshot(path=tmp_path / f"person_{n}.png", full_page=True)
+    assert codes[0] != codes[1] and all(re.fullmatch(r"[A-Z2-9]{8}", c) for c in codes)
     assert pages.errors == []
-
-    df = load_user_study(out / "bandit_human_human.csv")
+    df = load_user_study_from(srv)
     assert list(zip(df["action_1"], df["action_2"])) == picks
     assert list(zip(df["task"], df["context"], df["try"])) == SCHEDULE
 
 
-def test_bad_requests_show_a_clear_error_in_the_page_and_record_nothing(serve, pages, tmp_path: Path) -> None:
-    out = tmp_path / "rec"
-    srv = serve(Lobby("bandit", SessionRecorder(out)))
-    one, two = pages(), pages()
-    one.goto(srv.url)
-    one.fill("#join-code", "QQQQ")
-    one.click("#join-room")
-    expect(one.locator("#error")).to_have_text("no room with code 'QQQQ': check the code your partner gave you")
-    expect(one.locator("#lobby")).to_be_visible()
+def test_the_page_shows_refused_moves_and_survives_a_server_restart(serve, pages, tmp_path: Path) -> None:
+    settings = oracle_study("agent")
+    db = tmp_path / "restart" / DB_FILE
+    srv = serve(settings, db)
+    page = pages()
+    consent_and_start(page, srv.url + "?participant=carol")
+    page.evaluate("play.sendMove({arm: 7})")
+    expect(page.locator("#error")).to_have_text("arm must be an integer from 1 to 4, got 7")
+    page.click('.arm[data-arm="1"]')
+    wait_played(page, 1)
+    expect(page.locator("#error")).to_be_hidden()  # a new action clears the old error
+    port = srv.sock.getsockname()[1]
+    srv.stop()  # the server goes away with the page open
+    expect(page.locator("#offline")).to_be_visible()
+    again = StudyServer(settings, db, port=port, admin_token=ADMIN_TOKEN)
+    again.start()
+    try:
+        expect(page.locator("#offline")).to_be_hidden()
+        page.click('.arm[data-arm="1"]')
+        wait_played(page, 2)
+        assert "context A, try 2" in page.locator("#last").inner_text()
+    finally:
+        again.stop()
+    assert pages.errors == []
 
-    one.click("#create-room")
-    expect(one.locator("#error")).to_be_hidden()  # a new action clears the old error
-    code = room_code(one)
-    one.evaluate("play.sendMove({arm: 1})")
-    expect(one.locator("#error")).to_have_text(f"your partner has not joined yet: give them the room code {code}")
-    two.goto(srv.url)
-    two.fill("#join-code", code)
-    two.click("#join-room")
-    expect(two.locator("#status")).to_have_text("Your turn: pick an arm.")
-    two.evaluate("play.sendMove({arm: 7})")
-    expect(two.locator("#error")).to_have_text("arm must be an integer from 1 to 4, got 7")
-    one.click('.arm[data-arm="1"]')
-    one.evaluate("play.sendMove({arm: 2})")  # out of turn: a second pick in the same try
-    expect(one.locator("#error")).to_have_text("you already picked arm 1 for this try; wait for your partner's pick")
-    one.screenshot(path=tmp_path / "error.png", full_page=True)
-    assert not (out / "bandit_human_human.csv").exists()  # no try completed, nothing recorded
 
-    two.click('.arm[data-arm="4"]')
-    wait_played(one, 1)
-    df = load_user_study(out / "bandit_human_human.csv")
-    assert df[["try", "action_1", "action_2"]].values.tolist() == [[1, 1, 4]]
+def test_the_admin_page_needs_the_token_and_shows_live_counts(serve, pages, tmp_path: Path) -> None:
+    srv = serve(build_settings(agents=["ours=oracle", "baseline=oracle"], conditions="ours,baseline"))
+    page = pages()
+    page.goto(srv.url + "admin")
+    expect(page.locator("#login")).to_be_visible()
+    page.fill("#token", "wrong-token")
+    page.click("#login button")
+    expect(page.locator("#error")).to_have_text("wrong admin token")
+    page.fill("#token", ADMIN_TOKEN)
+    page.click("#login button")
+    expect(page.locator("#conditions tbody tr")).to_have_count(2)
+    expect(page.locator("#summary")).to_contain_text("0 participants")
+    with httpx.Client(base_url=srv.url, timeout=10) as c:
+        for i in range(3):
+            p = c.post("/api/participants", json={"consent": True, "participant": f"p{i}"}).json()
+            c.post("/api/move", json={"token": p["token"], "step": 0, "arm": 1})
+    expect(page.locator("#summary")).to_contain_text("3 participants")  # live: the page polls
+    rows = page.locator("#conditions tbody tr").evaluate_all("rows => rows.map(r => [...r.cells].map(c => c.textContent))")
+    assert sorted(r[3] for r in rows) == ["1", "2"] and all("oracle task module" in r[-1] for r in rows)  # playing, description
+    with page.expect_download() as download:
+        page.click("#downloads a >> nth=0")
+    saved = tmp_path / "export.csv"
+    download.value.save_as(saved)
+    assert len(load_user_study(saved)) == 3
+    page.screenshot(path=tmp_path / "admin.png", full_page=True)
     assert pages.errors == []
 
 
 def test_two_people_play_blocks_and_see_moves_as_they_happen(serve, pages, tmp_path: Path) -> None:
-    out = tmp_path / "rec"
-    srv = serve(Lobby("blocks", SessionRecorder(out), games=1, seed=5))
+    srv = serve(oracle_study("human", game="blocks", games=1, seed=5))
     p1, p2 = pages(), pages()
-    p1.goto(srv.url)
-    expect(p1.locator("#title")).to_have_text("Block placing")
-    p1.click("#create-room")
-    code = room_code(p1)
-    p2.goto(srv.url)
-    p2.fill("#join-code", code)
-    p2.click("#join-room")
+    for page, pid in ((p1, "red"), (p2, "blue")):
+        page.goto(srv.url + f"?participant={pid}")
+        page.check("#agree")
+        page.click("#to-instructions")
+        expect(page.locator("#rules")).to_contain_text("P1 (red) sees the goal grid")
+        page.click("#start")
     expect(p1.locator("#status")).to_have_text("Your turn (P1, red): move 1 of 6.")
     expect(p2.locator("#status")).to_have_text("Waiting for your partner (P1): move 1 of 6.")
     expect(p2.locator("#goal .cell.hidden")).to_have_count(4)  # P2 never sees the goal in play
@@ -207,19 +227,17 @@ def test_two_people_play_blocks_and_see_moves_as_they_happen(serve, pages, tmp_p
     expect(p2.locator("#moves li")).to_have_count(1)  # P2's page shows P1's move by itself
     expect(p2.locator(f'#board .cell[data-cell="{red}"]')).to_have_class("cell red")
     expect(p2.locator("#moves li")).to_have_text([f"P1 red on {CELL_NAMES[red]} (partner)"])
-    for n, page in enumerate((p1, p2), start=1):
-        page.screenshot(path=tmp_path / f"blocks_p{n}_move2.png", full_page=True)
     p2.click(f'#board .cell[data-cell="{blue}"]')
     for _ in range(2):
+        p1.wait_for_selector('body[data-phase="your_turn"]', state="attached")
         p1.click("#pass")
         p2.wait_for_selector('body[data-phase="your_turn"]', state="attached")
         p2.click("#pass")
-        if _ == 0:
-            p1.wait_for_selector('body[data-phase="your_turn"]', state="attached")
     for n, page in enumerate((p1, p2), start=1):
         expect(page.locator("#status")).to_have_text("Session finished: 20 points in 1 game. Thank you!")
+        expect(page.locator("#done")).to_be_visible()
         page.screenshot(path=tmp_path / f"blocks_p{n}.png", full_page=True)
     expect(p2.locator("#last .cell.red")).to_have_count(2)  # the goal is revealed to P2 once the game is over
-    rows = (out / "blocks" / "human_human.csv").read_text().splitlines()
-    assert len(rows) == 7 and rows[-1].endswith(",20")
+    rows = table_csv(srv.store).splitlines()
+    assert len(rows) == 7 and rows[-1].endswith(",20,human")
     assert pages.errors == []

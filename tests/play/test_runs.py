@@ -1,23 +1,19 @@
-"""Reading trained egos for play, and the real `rllib-conv play` command (started, queried, stopped with Ctrl-C)."""
+"""Reading trained egos for play, and the real `rllib-conv play RUN` (started, queried, stopped with Ctrl-C)."""
 
 from __future__ import annotations
 
-import json
 import shutil
-import signal
-import subprocess
-import sys
-import time
-import urllib.request
 from pathlib import Path
 
+import httpx
 import numpy as np
 import pytest
 import yaml
 
 from rllib_conv import partners
+from rllib_conv.play.conditions import build_settings
 from rllib_conv.play.ego_run import EgoRun, load_run, require_user_study
-from rllib_conv.play.server import build_lobby
+from tests.play.servers import ADMIN_TOKEN
 
 
 def test_a_trained_ego_gives_the_prior_and_its_seat(study_ego: Path, tmp_path: Path) -> None:
@@ -25,17 +21,21 @@ def test_a_trained_ego_gives_the_prior_and_its_seat(study_ego: Path, tmp_path: P
     assert run.game == "bandit" and run.ego_seat == 1 and run.env_config == {"task": "user_study", "new_task": False}
     probs = run.prior(np.eye(3, dtype=np.float32), np.ones((3, 4), dtype=np.int8))
     assert probs.shape == (3, 4) and np.allclose(probs.sum(axis=1), 1) and (probs > 0).all()
-    assert load_run(study_ego.parent).trial == study_ego  # an experiment folder with one trial is fine
-    lobby = build_lobby(study_ego, out=tmp_path / "rec")
-    assert lobby.agent.ego_seat == 1 and set(lobby.agent.priors) == {"train", "test"}
-    assert lobby.run_info["test_prior"] == "oracle" and lobby.run_info["run"] == str(study_ego)
+    assert load_run(study_ego.parent).trial == run.trial  # an experiment folder with one trial is fine
+    settings = build_settings(study_ego, conditions="agent,human")
+    agent = settings.condition("agent").agent
+    assert agent.ego_seat == 1 and set(agent.priors) == {"train", "test"} and settings.game == "bandit"
+    assert agent.description.startswith("modular ego (lam 0.5) trained with bandit-user-study") and "Test task: the true marginals" in agent.description
+    assert settings.run_info["agent"]["run"] == str(study_ego)
+    two = build_settings(agents=[f"ours={study_ego}", "baseline=oracle"], conditions="ours,baseline,human")
+    assert [c.kind for c in two.conditions] == ["agent", "agent", "human"]
 
 
 def test_runs_for_the_wrong_task_or_game_are_refused(study_ego: Path, tmp_path: Path) -> None:
-    with pytest.raises(ValueError, match="--test-run .* needs an ego trained on the user-study bandit's Test task .*bandit-user-study-newtask"):
-        build_lobby(study_ego, test_run=study_ego, out=tmp_path / "rec")
+    with pytest.raises(ValueError, match="--test-run agent .* needs an ego trained on the user-study bandit's Test task .*bandit-user-study-newtask"):
+        build_settings(study_ego, test_runs=[str(study_ego)])
     with pytest.raises(ValueError, match="trained on 'bandit', but --game is 'blocks'"):
-        build_lobby(study_ego, game="blocks", out=tmp_path / "rec")
+        build_settings(study_ego, game="blocks")
     run = load_run(study_ego)
     other = EgoRun(run.trial, run.exp, partners.get("bandit-s2-hand"), run.prior)
     with pytest.raises(ValueError, match="RUN .* was trained on bandit with \\{'symmetric': 2, 'new_task': False\\}"):
@@ -59,26 +59,16 @@ def test_folders_that_are_not_one_usable_trial_are_refused(study_ego: Path, tmp_
         load_run(two / "a")
 
 
-def test_the_play_command_serves_until_ctrl_c(study_ego: Path, tmp_path: Path) -> None:
-    cmd = [sys.executable, "-m", "rllib_conv.cli", "play", str(study_ego), "--port", "0", "--out", str(tmp_path / "rec")]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    try:
-        lines, url, deadline = [], None, time.monotonic() + 90
-        while url is None and time.monotonic() < deadline:
-            line = proc.stdout.readline()
-            if not line:
-                break
-            lines.append(line)
-            if line.startswith("open http://127.0.0.1:"):
-                url = line.split()[1]
-        assert url, "".join(lines)
-        assert any("recording to" in line for line in lines)
-        with urllib.request.urlopen(url + "api/info", timeout=10) as r:
-            info = json.loads(r.read())
-        assert info["agent"] is True and info["game"] == "bandit"
-        proc.send_signal(signal.SIGINT)
-        assert proc.wait(timeout=20) == 0
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
+def test_the_play_command_serves_a_trained_ego_until_ctrl_c(study_ego: Path, study_process, tmp_path: Path) -> None:
+    server = study_process([str(study_ego), "--port", "0", "--out", str(tmp_path / "study")])
+    assert any("admin page: http://127.0.0.1:" in line for line in server.lines)
+    with httpx.Client(base_url=server.url, timeout=10) as c:
+        info = c.get("/api/info").json()
+        p = c.post("/api/participants", json={"consent": True, "participant": "p1"}).json()
+        view = c.post("/api/move", json={"token": p["token"], "step": 0, "arm": 1}).json()
+        status = c.get("/api/admin/status", headers={"Authorization": f"Bearer {ADMIN_TOKEN}"}).json()
+    assert info["game"] == "bandit" and view["played"] == 1 and view["partner"] == "agent"
+    assert not [w for w in ("modular", "lam", "EgoTrainable", "bandit-user-study") if w in str(info) + str(view)]  # no internals for participants
+    assert status["conditions"][0]["description"].startswith("modular ego (lam 0.5) trained with bandit-user-study")
+    assert server.interrupt() == 130  # Ctrl-C: a graceful stop, then the usual status of an interrupt
+    assert (tmp_path / "study" / "study.sqlite3").exists()

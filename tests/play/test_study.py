@@ -9,7 +9,7 @@ import pytest
 
 from rllib_conv.cli import main
 from rllib_conv.common.user_study_table import load_user_study
-from rllib_conv.play.conditions import Condition, StudySettings, build_settings
+from rllib_conv.play.conditions import Condition, StudySettings, build_settings, parse_named
 from rllib_conv.play.export import export, participants_csv
 from rllib_conv.play.room import PlayError
 from rllib_conv.play.store import DB_FILE, Store
@@ -223,6 +223,8 @@ def test_settings_are_checked_naming_the_argument(tmp_path: Path) -> None:
         build_settings(completion_code="no spaces")
     with pytest.raises(ValueError, match="RUN .* does not exist"):
         build_settings(tmp_path / "missing")
+    assert parse_named(["runs/x/seed=0"], "--test-run", "agent") == {"agent": "runs/x/seed=0"}  # '=' in a path
+    assert parse_named(["b=runs/y/seed=1"], "--test-run", "agent") == {"b": "runs/y/seed=1"}
     assert [c.name for c in build_settings().conditions] == ["human"]
     assert build_settings(game="blocks").game == "blocks"
     with pytest.raises(ValueError, match="--game must be one of"):
