@@ -19,7 +19,7 @@
 The server's agent is the oracle agent unless `--run` gives a trained ego (then each of
 its picks is a forward pass of the task module). Clients and server share the machine's
 cores: the latencies include the clients' own queueing and are an upper bound for one
-server on this machine. Prints a table; writes results/study_server.json.
+server on this machine; the server's CPU time says how much of the wall time it worked. Prints a table; writes results/study_server.json.
 """
 
 from __future__ import annotations
@@ -75,6 +75,12 @@ def server_args(out: Path, run: str | None, port: int = 0) -> list[str]:
     return [*agent, "--conditions", "agent,human", "--port", str(port), "--out", str(out), "--admin-token", "benchmark-token"]
 
 
+def cpu_s(pid: int) -> float:
+    """CPU seconds (user + system) process `pid` has used so far (Linux /proc)."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
 def stored_tries(db: Path) -> int:
     with sqlite3.connect(f"file:{db}?mode=ro", uri=True) as raw:
         return raw.execute("SELECT COUNT(*) FROM tries").fetchone()[0]
@@ -87,6 +93,7 @@ def load(n: int, clients: int, run: str | None, root: Path, think_s: float) -> d
         start = time.perf_counter()
         outcomes = run_clients(server.url, [f"load-{i}" for i in range(n)], clients, deadline_s=600, think_s=think_s)
         wall = time.perf_counter() - start
+        server_cpu = cpu_s(server.proc.pid)
         result = audit(out / DB_FILE, outcomes)
         server.interrupt()
     finally:
@@ -98,6 +105,8 @@ def load(n: int, clients: int, run: str | None, root: Path, think_s: float) -> d
         "in_human_pairs": sum(o.partner == "person" for o in outcomes),
         "wall_s": round(wall, 2),
         "tries_per_s": round(result.tries / wall, 1),
+        "server_cpu_s": round(server_cpu, 2),  # startup included; the rest of the wall time the server waited on its clients
+        "server_cpu_ms_per_try": round(server_cpu / result.tries * 1000, 2),
         "latency": latencies(outcomes),
         "reconnects": sum(o.reconnects for o in outcomes),
         "audit": vars(result),
@@ -173,7 +182,7 @@ def main() -> None:
     for loaded in runs:
         a = loaded["audit"]
         print(f"load ({loaded['think_s']:g} s think): {loaded['participants']} participants ({loaded['with_agent']} with the agent, {loaded['in_human_pairs']} in human pairs), "
-              f"{a['tries']} tries in {loaded['wall_s']} s ({loaded['tries_per_s']} tries/s); lost {a['lost']}, duplicated {a['duplicated']}, unfinished {a['unfinished']}")
+              f"{a['tries']} tries in {loaded['wall_s']} s ({loaded['tries_per_s']} tries/s, server CPU {loaded['server_cpu_s']} s); lost {a['lost']}, duplicated {a['duplicated']}, unfinished {a['unfinished']}")
     b, c = faulted["audit_before_kill"], faulted["audit_after"]
     print(f"faults: {faulted['participants']} participants, SIGKILL at {faulted['tries_at_kill']} stored tries "
           f"({faulted['acknowledged_before_kill']} acknowledged), back in {faulted['outage_s']} s; "

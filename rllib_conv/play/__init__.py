@@ -1,21 +1,21 @@
-"""People play the paper's games in a browser, with a trained ego or with each other.
+"""People play the paper's games in a browser, with a trained ego or with each other: a study server.
 
-`rllib-conv play [RUN] [--game bandit|blocks] [--port 8000]` serves a page on 127.0.0.1:
+`rllib-conv play [RUN] [--agent NAME=RUN ...] [--conditions agent,human]` serves a study
+(docs/play.md): participants arrive with an id in the URL, consent, read the instructions,
+are assigned to a condition (balanced), play, and get a completion code. In an agent
+condition the partner is the trained ego's task module (the rules) times a partner
+module for this person learnt between tries (`agent.py`); in the human condition two
+waiting participants are paired. The bandit session is the paper's study: Train task
+then Test task, contexts A, B, C, five tries each. Every try is committed to SQLite
+before it is acknowledged; `rllib-conv play export DB` writes the user-study CSV.
 
-- human + agent: a person plays with the trained ego in RUN (choosing the seat). The agent
-  is the ego's task module (the rules) times a partner module for this person that it
-  learns between tries (`agent.py` documents the rule).
-- human + human: one browser creates a room, another joins with its code; the only
-  channel between them is the game, as in the paper's user study.
-
-The bandit session is the paper's study: Train task then Test task, contexts A, B, C,
-five tries each, both picks revealed after each try. Sessions are recorded under
-`--out` (`recording.py`): bandit sessions in the exact format of
-`analysis/data/user_study.csv`, one row per pair, task, context and try.
-
-Modules: `agent` (the adapting agent and its hindsight targets), `ego_run` (a trained ego
-read from its trial folder as the agent's prior), `room`, `bandit_room`, `blocks_room` (the
-game state machines, turn checks, what each player sees), `lobby` (creating and finding
-rooms), `recording` (atomic CSV appends), `server` (http.server JSON API + static page in
-`static/`), `command` (the CLI's `play` arguments).
+Modules, bottom up: `agent` (the adapting agent and its hindsight targets), `ego_run` (a
+trained ego read from its trial folder as the agent's prior), `store` (the SQLite
+database), `room`, `bandit_room`, `blocks_room` (the games' state machines: turns, steps,
+what each player sees, replay), `conditions` (conditions and settings from the command
+line), `study` (participants, assignment, pairing, timeouts, completion codes, restore),
+`export` (the CSV exports), `limits` (request size and time limits), `app` (the Starlette
+app: pages, JSON API, WebSocket, admin API), `server` (uvicorn on one socket), `command`
+(the CLI's `play` arguments), `simulated` (scripted participants for rehearsals, the load
+benchmark and the fault tests), `static/` (the participants' and the admin page).
 """
