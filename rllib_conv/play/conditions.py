@@ -14,7 +14,7 @@ raising ValueError naming the argument for anything wrong.
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -73,7 +73,6 @@ class StudySettings:
     idle_timeout: float = 600.0
     completion_code: str | None = None
     consent: str = DEFAULT_CONSENT
-    run_info: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if self.game not in GAMES:
@@ -138,8 +137,8 @@ def _test_prior(test_run: str | None, test_prior: str, name: str) -> tuple[Any, 
     return uniform_prior, "Test task: uniform over the arms"
 
 
-def build_agent(name: str, run: str, game: str | None, test_run: str | None, test_prior: str, step_size: float, greedy: bool, seed: int) -> tuple[str, AgentSettings, bool, dict[str, Any]]:
-    """(game, settings, new_task, run info) of the agent `name` with its task module from `run` (or the oracle)."""
+def build_agent(name: str, run: str, game: str | None, test_run: str | None, test_prior: str, step_size: float, greedy: bool, seed: int) -> tuple[str, AgentSettings, bool]:
+    """(game, settings, new_task) of the agent `name` with its task module from `run` (or the oracle)."""
     adapt = f"adapts with step size {step_size:g}{', greedy' if greedy else ''}"
     if run == ORACLE:
         if game not in (None, "bandit"):
@@ -147,7 +146,7 @@ def build_agent(name: str, run: str, game: str | None, test_run: str | None, tes
         test, test_words = _test_prior(test_run, test_prior, name)
         priors = {"train": bandit_oracle_prior(user_study_prizes(new_task=False)), "test": test}
         description = f"oracle task module (the true marginals), {adapt}; {test_words}"
-        return "bandit", AgentSettings(priors=priors, ego_seat=1, step_size=step_size, greedy=greedy, seed=seed, description=description), False, {"run": ORACLE}
+        return "bandit", AgentSettings(priors=priors, ego_seat=1, step_size=step_size, greedy=greedy, seed=seed, description=description), False
 
     from rllib_conv.play.ego_run import load_run, require_user_study  # torch and Ray load only with a run
 
@@ -158,7 +157,6 @@ def build_agent(name: str, run: str, game: str | None, test_run: str | None, tes
         raise ValueError(f"{what} {str(ego.trial)!r} was trained on {ego.game!r}, but --game is {game!r}")
     if game not in GAMES:
         raise ValueError(f"{what} {str(ego.trial)!r} was trained on {game!r}; play supports {list(GAMES)}")
-    info: dict[str, Any] = {"run": str(ego.trial), "method": ego.exp.method, "lam": ego.exp.lam, "population": ego.population.name}
     new_task = False
     if game == "bandit":
         require_user_study(ego, new_task=False, what=what)
@@ -172,7 +170,7 @@ def build_agent(name: str, run: str, game: str | None, test_run: str | None, tes
         priors = {"task": ego.prior}
         description = f"{ego.describe()}; {adapt}"
     settings = AgentSettings(priors=priors, ego_seat=ego.ego_seat, step_size=step_size, greedy=greedy, seed=seed, description=description)
-    return game, settings, new_task, info
+    return game, settings, new_task
 
 
 def build_settings(
@@ -224,12 +222,11 @@ def build_settings(
 
     built: dict[str, Condition] = {}
     new_tasks: dict[str, bool] = {}
-    info: dict[str, Any] = {}
     for name in names:
         if name == HUMAN:
             built[name] = Condition(HUMAN, None, "two participants paired with each other")
             continue
-        agent_game, agent, new_task, info[name] = build_agent(name, runs[name], game, tests.get(name), test_prior, step_size, greedy, seed)
+        agent_game, agent, new_task = build_agent(name, runs[name], game, tests.get(name), test_prior, step_size, greedy, seed)
         game = game or agent_game
         if agent_game != game:
             raise ValueError(f"--agent {name}: trained on {agent_game!r}, but the study plays {game!r}")
@@ -237,7 +234,7 @@ def build_settings(
         built[name] = Condition(name, agent, agent.description)
     if len(set(new_tasks.values())) > 1:
         raise ValueError(f"the agents were trained on different blocks tasks ({new_tasks}); one study plays one task")
-    settings = StudySettings(game=game or "bandit", conditions=[built[n] for n in names], new_task=any(new_tasks.values()), seed=seed, run_info=info, **options)
+    settings = StudySettings(game=game or "bandit", conditions=[built[n] for n in names], new_task=any(new_tasks.values()), seed=seed, **options)
     for c in settings.conditions:
         if c.agent is not None and settings.person_seat == c.agent.ego_seat == 2 and settings.game == "blocks":
             raise ValueError(f"--seat 2: agent {c.name!r} was trained as P2 and there is no P1 agent; use --seat 1")

@@ -160,6 +160,7 @@ class Study:
             p.pair, p.seat, p.state, p.updated = pair, seat, "playing", now
         self._seated[pair] = dict(seats)
         self._activity[pair] = now
+        self.version += 1
         room = self._build(RoomRecord(pair, self.settings.game, condition.name, agent_seat, "playing", None, now, now))
         self._add(room)
         room.start()
@@ -206,8 +207,8 @@ class Study:
         if room.finished and any(self.participants[pid].state == "playing" for pid in self._seated[room.pair].values()):
             self._end(room.pair, "finished", None)
 
-    def _end(self, pair: int | None, state: str, reason: str | None, pids: list[str] | None = None) -> bool:
-        """End room `pair` (or, with None, the participants `pids` who have none); False if the write failed."""
+    def _end(self, pair: int | None, state: str, reason: str | None, pids: list[str] | None = None) -> None:
+        """End room `pair` (or, with None, the participants `pids` who have none); if the write fails, a later call retries."""
         pids = list(self._seated[pair].values()) if pair is not None else pids or []
         codes = {pid: self.settings.completion_code or "".join(secrets.choice(CODE_ALPHABET) for _ in range(CODE_LENGTH)) for pid in pids}
         now = self.clock()
@@ -215,7 +216,7 @@ class Study:
             self.store.close_room(pair, state, reason, codes, now)
         except sqlite3.Error as exc:
             log.warning("could not end room %s (%s); will retry", pair, exc)
-            return False
+            return
         for pid, code in codes.items():
             p = self.participants[pid]
             p.state, p.end_reason, p.completion_code, p.updated = state, reason, code, now
@@ -224,7 +225,6 @@ class Study:
             self._activity.pop(pair, None)
         self.version += 1
         self._notify(pids)
-        return True
 
     # -- live pages and pairing -----------------------------------------------------------------
     def connect(self, token: Any, listener: Listener) -> tuple[Participant, Callable[[], None]]:
@@ -328,7 +328,7 @@ class Study:
                 active = any(c.name == name for c in self.settings.conditions)
                 conditions.append({"name": name, "kind": kind, "description": description, "active": active, **counts[name]})
             connected = sum(1 for n in self._present.values() if n > 0)
-            return {"game": self.settings.game, "conditions": conditions, "connected": connected, "participants": len(self.participants), "run_info": self.settings.run_info}
+            return {"game": self.settings.game, "conditions": conditions, "connected": connected, "participants": len(self.participants)}
 
     def close(self) -> None:
         """Stop every room's agent timers (the server is stopping)."""

@@ -26,7 +26,6 @@ def test_a_trained_ego_gives_the_prior_and_its_seat(study_ego: Path, tmp_path: P
     agent = settings.condition("agent").agent
     assert agent.ego_seat == 1 and set(agent.priors) == {"train", "test"} and settings.game == "bandit"
     assert agent.description.startswith("modular ego (lam 0.5) trained with bandit-user-study") and "Test task: the true marginals" in agent.description
-    assert settings.run_info["agent"]["run"] == str(study_ego)
     two = build_settings(agents=[f"ours={study_ego}", "baseline=oracle"], conditions="ours,baseline,human")
     assert [c.kind for c in two.conditions] == ["agent", "agent", "human"]
 
