@@ -10,7 +10,6 @@ database: the rooms live in its memory, SQLite holds what they replay from.
 from __future__ import annotations
 
 import asyncio
-import logging
 import secrets
 import socket
 import sys
@@ -120,8 +119,6 @@ class StudyServer:
             import torch
 
             torch.set_num_threads(1)  # one request at a time; torch's thread pool would only compete
-        if not self.verbose:
-            logging.getLogger("uvicorn.error").setLevel(logging.WARNING)
         try:
             asyncio.run(self.serve())
         finally:
