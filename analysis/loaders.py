@@ -25,7 +25,6 @@ from rllib_conv.common import methods
 from rllib_conv.common.resources import user_study_csv
 from rllib_conv.common.run_folders import (
     ADAPTATION_DIR,
-    CONFIG_FILE,
     CROSSPLAY_DIR,
     EVAL_FILE,
     EXPERIMENT_SEPARATOR,
@@ -40,9 +39,12 @@ from rllib_conv.common.run_folders import (
     STAGES,
     ZEROSHOT_DIR,
     expected_stages,
+    experiment_of,
     marker_path,
     read_trial_config,
     split_experiment,
+    trial_folders,
+    trial_name,
 )
 from rllib_conv.common.user_study_table import load_user_study
 
@@ -118,32 +120,42 @@ TRIAL_COLUMNS = ["game", "experiment", "population", "label", "trial", "run", "m
 
 
 def trial_dirs(game_dir: str | Path) -> list[Path]:
-    """The trained-ego trial folders of a game folder: `runs/<population>__<label>/<trial>/` holding a config.yaml."""
+    """The trained-ego folders of a game folder: `runs/<population>__<label>/<trial>/seed=<s>/` (older runs:
+    `<trial>/`) holding a config.yaml."""
     runs = Path(game_dir) / RUNS_DIR
     if not runs.is_dir():
         return []
     return sorted(
-        t.parent
+        t
         for exp in runs.iterdir()
         if exp.is_dir() and EXPERIMENT_SEPARATOR in exp.name and not exp.name.startswith(STAGE_PREFIXES)
-        for t in exp.glob(f"*/{CONFIG_FILE}")
+        for t in _egos_in(exp)
     )
+
+
+def _egos_in(experiment: Path) -> list[Path]:
+    """The trained-ego folders of one experiment folder (none: an empty list)."""
+    try:
+        return trial_folders(experiment)
+    except ValueError:
+        return []
 
 
 def trial_info(trial: str | Path, game: str | None = None) -> dict[str, Any]:
     """The identifiers of one trial folder (see `TRIAL_COLUMNS`), read from its path and config.yaml."""
     trial = Path(trial)
     cfg = read_trial_config(trial)
-    population, label = split_experiment(trial.parent.name)
+    experiment = experiment_of(trial).name
+    population, label = split_experiment(experiment)
     if not label:  # not a reproduce experiment (`<population>__<label>`): a sweep's trial names its population itself
         population = str(cfg.get("population", population))
     model = cfg.get("model") or {}
     return {
         "game": game or cfg.get("env", ""),
-        "experiment": trial.parent.name,
+        "experiment": experiment,
         "population": population,
         "label": label,
-        "trial": trial.name,
+        "trial": trial_name(trial),
         "run": str(trial),
         "method": cfg.get("method"),
         "lam": float(cfg.get("lam", 0.0) or 0.0),
@@ -196,7 +208,7 @@ def load_sweep(experiment: str | Path) -> pd.DataFrame:
     (population, method, lam, seed, z_dim) come from each trial's config.yaml. ValueError
     if the folder holds no trial.
     """
-    trials = sorted(p.parent for p in Path(experiment).glob(f"*/{CONFIG_FILE}"))
+    trials = _egos_in(Path(experiment))
     if not trials:
         raise ValueError(f"{str(experiment)!r} holds no trained-ego trial (no */config.yaml); expected a sweep's STORAGE/NAME folder")
     return load_trial_curves(trials)

@@ -24,7 +24,7 @@ import pandas as pd
 
 from analysis import figures, loaders
 from analysis.loaders import CONFIG_PREFIX
-from rllib_conv.common.run_folders import CONFIG_FILE, trial_folders
+from rllib_conv.common.run_folders import trial_folders
 
 LEARNING_CURVES = "learning_curves.png"
 SWEEP = "sweep.png"
@@ -52,12 +52,19 @@ def plot_folder(path: str | Path) -> list[Path]:
         return [_plot_csv(path)]
     if not path.is_dir():
         raise ValueError(f"{str(path)!r} does not exist; expected {EXPECTED}")
-    if (path / CONFIG_FILE).is_file() or any(path.glob(f"*/{CONFIG_FILE}")):
+    if _holds_trained_egos(path):
         return _plot_training(path)
     csvs = [p for p in sorted(path.glob("*.csv")) if _stage_of(p)]
     if not csvs:
         raise ValueError(f"{str(path)!r} holds nothing to plot; expected {EXPECTED}")
     return [_plot_csv(p) for p in csvs]
+
+
+def _holds_trained_egos(path: Path) -> bool:
+    try:
+        return bool(trial_folders(path))
+    except ValueError:
+        return False
 
 
 def _stage_of(csv: Path) -> str | None:

@@ -60,7 +60,7 @@ def _run_sweep(config: Path, storage: Path, address: str | None) -> float:
 
 
 def _trial_times(storage: Path) -> tuple[float, float]:
-    evals = [json.loads(p.read_text()) for p in storage.glob("overhead/*/eval.json")]
+    evals = [json.loads(p.read_text()) for p in storage.glob("overhead/*/seed=*/eval.json")]
     if len(evals) != 4:
         raise RuntimeError(f"expected 4 finished trials under {storage}, found {len(evals)}")
     return sum(e["setup_s"] for e in evals) / 4, sum(e["wall_s"] for e in evals) / 4

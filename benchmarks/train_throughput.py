@@ -1,16 +1,21 @@
-"""Ego-training throughput (env steps per second) vs RLlib's default multi-agent PPO, side by side.
+"""Ego-training throughput (env steps per second) beside RLlib's default multi-agent PPO and the game's own ceiling.
 
-For each game (bandit with 2 symmetric contexts, blocks), in one run:
-- `ours`: the modular ego (lam 0.5) against 4 scripted partners with the paper's
-  hyperparameters, vectorised sub-environments, one torch thread, one local env runner;
+For each game (bandit with 2 symmetric contexts, blocks, Hanabi), in one run:
+- `ours_1`: the modular ego (lam 0.5) with the paper's hyperparameters against 4 scripted
+  partners (Hanabi: its scripted population), one seed: what one trial of a lone seed gets;
+- `ours_3`: three seeds packed as replicas of one algorithm (how `train` runs an
+  experiment's seeds), counted in env steps of all three (each replica trains as alone);
 - `rllib_default`: `PPOConfig()` defaults (2 env runners, 1 env each, 256x256 MLPs,
   4000-step batches, minibatch 128, 30 epochs) with one learning module per seat
   (RLlib's `ActionMaskingTorchRLModule`, since the observations carry a mask), and
-  `sample_timeout_s` raised from 60 s, which one default iteration exceeds here.
-Both are timed over whole training iterations after one warm-up iteration, and the table
-reports env steps per second and their ratio. Writes `benchmarks/results/train_throughput.json`.
+  `sample_timeout_s` raised from 60 s, which one default iteration exceeds here;
+- `env_ceiling`: random legal moves through our RLlib adapter, in env steps (a bandit env
+  step is both players' moves), as `env_throughput.py` measures them;
+- `target`: issue 22's per-trial target.
+Timed over whole training iterations after one warm-up iteration. Writes
+`benchmarks/results/train_throughput.json`.
 
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/train_throughput.py [--seconds 60]
+    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/train_throughput.py [--seconds 30] [--games bandit blocks hanabi]
 """
 
 from __future__ import annotations
@@ -31,6 +36,7 @@ from ray.rllib.examples.rl_modules.classes.action_masking_rlm import (
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import write_result  # noqa: E402
+from env_throughput import adapter_steps_per_second  # noqa: E402
 
 from rllib_conv import partners  # noqa: E402
 from rllib_conv.envs.rllib_adapter import to_rllib  # noqa: E402
@@ -39,7 +45,7 @@ from rllib_conv.partners.blocks import (  # noqa: E402
     TRAIN_PERMUTATIONS,
     PermutationPartner,
 )
-from rllib_conv.training.algorithm import build_ppo_config  # noqa: E402
+from rllib_conv.training.algorithm import Replica, build_ppo_config  # noqa: E402
 from rllib_conv.training.ego_setup import resolve  # noqa: E402
 from rllib_conv.training.experiment import ExperimentConfig  # noqa: E402
 
@@ -53,9 +59,9 @@ def _blocks_four(tmp: Path) -> str:
     return str(pop.save(tmp / "blocks-perm4.json"))
 
 
-def ours(population: str) -> PPOConfig:
-    """The modular ego's config (paper hyperparameters) for `population`."""
-    return build_ppo_config(resolve(ExperimentConfig(population=population, lam=0.5, seed=0)))
+def ours(population: str, seeds: int) -> PPOConfig:
+    """The modular ego's config (paper hyperparameters) for `population`, `seeds` seeds packed as replicas."""
+    return build_ppo_config([Replica(resolve(ExperimentConfig(population=population, lam=0.5, seed=s))) for s in range(seeds)])
 
 
 def rllib_default(env: str, env_config: dict) -> PPOConfig:
@@ -76,8 +82,8 @@ def rllib_default(env: str, env_config: dict) -> PPOConfig:
     )
 
 
-def steps_per_second(config: PPOConfig, seconds: float) -> tuple[float, int]:
-    """Train for at least `seconds` (whole iterations, after a warm-up one); return (steps/s, iterations)."""
+def steps_per_second(config: PPOConfig, seconds: float, replicas: int = 1) -> tuple[float, int]:
+    """Train for at least `seconds` (whole iterations, after a warm-up one); return (env steps/s of all replicas, iterations)."""
     algo = config.build_algo()
     try:
         algo.train()
@@ -86,27 +92,45 @@ def steps_per_second(config: PPOConfig, seconds: float) -> tuple[float, int]:
             result = algo.train()
             steps += result["env_runners"]["num_env_steps_sampled"]
             iters += 1
-        return steps / (time.perf_counter() - start), iters
+        return replicas * steps / (time.perf_counter() - start), iters
     finally:
         algo.stop()
 
 
+TARGETS = {"bandit": 3000, "blocks": 8000, "hanabi": 2500}  # issue 22, env steps/s per trial
+MOVES_PER_STEP = {"bandit": 2, "blocks": 1, "hanabi": 1}  # agent moves in one env step
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seconds", type=float, default=60.0, help="minimum timed training per measurement")
+    parser.add_argument("--seconds", type=float, default=30.0, help="minimum timed training per measurement")
+    parser.add_argument("--games", nargs="+", default=list(TARGETS), choices=list(TARGETS))
     args = parser.parse_args()
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
     tmp = Path(__file__).resolve().parent / "results"
-    games = {"bandit": ("bandit-s2-hand", {"symmetric": 2}), "blocks": (_blocks_four(tmp), {})}
+    games = {"bandit": ("bandit-s2-hand", {"symmetric": 2}), "blocks": (_blocks_four(tmp), {}), "hanabi": ("hanabi-scripted", {})}
     rows = []
     try:
-        for game, (population, env_config) in games.items():
-            mine, n_mine = steps_per_second(ours(population), args.seconds)
+        for game in args.games:
+            population, env_config = games[game]
+            one, n_one = steps_per_second(ours(population, 1), args.seconds)
+            three, n_three = steps_per_second(ours(population, 3), args.seconds, replicas=3)
             default, n_default = steps_per_second(rllib_default(game, env_config), args.seconds)
+            ceiling = adapter_steps_per_second(game, env_config, 20_000) / MOVES_PER_STEP[game]
             rows.append(
-                {"env": game, "ours_steps_per_s": mine, "ours_iters": n_mine, "default_steps_per_s": default, "default_iters": n_default, "ratio": mine / default}
+                {
+                    "env": game,
+                    "ours_1": one,
+                    "ours_3": three,
+                    "rllib_default": default,
+                    "env_ceiling": ceiling,
+                    "target": TARGETS[game],
+                    "ours_3/default": three / default,
+                    "ours_3/ceiling": three / ceiling,
+                    "iterations": {"ours_1": n_one, "ours_3": n_three, "rllib_default": n_default},
+                }
             )
-            print(pd.DataFrame(rows).to_string(index=False, float_format="{:.1f}".format), flush=True)
+            print(pd.DataFrame(rows).drop(columns="iterations").to_string(index=False, float_format="{:.2f}".format), flush=True)
     finally:
         (tmp / "blocks-perm4.json").unlink(missing_ok=True)
         ray.shutdown()

@@ -44,6 +44,7 @@ ADAPT_SET_KEYS = {
     "episodes": "episodes per evaluation (200)",
     "ppo": "PPO settings replacing the run's, e.g. --set ppo.lr=1e-4 or ppo.num_epochs=10",
     "seed": "seed of the evaluation episodes (0)",
+    "max_pack": "curves trained together in one algorithm, for speed (32; each trains as it would alone)",
 }
 ZEROSHOT_SET_KEYS = {
     "head_steps": "step 1: env steps training the test partners' heads on the old task (bandit 2560, blocks 300000)",
@@ -55,6 +56,7 @@ ZEROSHOT_SET_KEYS = {
     "reset_task_logits": "step 2: re-initialise the task logits layer first (true)",
     "episodes": "step 3: evaluation episodes (200)",
     "seed": "seed of the evaluation episodes (0)",
+    "max_pack": "egos run together in one algorithm, for speed (32; each runs as it would alone)",
 }
 
 SEAT_SYNTAX = """\

@@ -5,6 +5,9 @@ import os
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("RAY_DEDUP_LOGS", "0")
 
+from dataclasses import dataclass
+from typing import Any
+
 import pytest
 
 
@@ -24,8 +27,9 @@ def bandit_egos(ray_session, tmp_path_factory):
     """Modular egos (lam 0.5, the paper's 10 000 steps) on the bandit with 1 and 2 symmetric contexts.
 
     Trained once per session through the real Tune pipeline, two trials in parallel;
-    returns {population name: trial result}.
+    returns {population name: TrainedEgo (the ego's folder and its trial's Tune result)}.
     """
+    from rllib_conv.common.run_folders import trial_folders
     from rllib_conv.pipelines.train import run
     from rllib_conv.training import experiment
 
@@ -34,4 +38,12 @@ def bandit_egos(ray_session, tmp_path_factory):
     )
     results = run(raw, storage=tmp_path_factory.mktemp("egos"))
     assert not results.errors
-    return {r.config["population"]: r for r in results}
+    return {r.config["population"]: TrainedEgo(str(trial_folders(r.path)[0]), r) for r in results}
+
+
+@dataclass
+class TrainedEgo:
+    """A trained ego of a test fixture: its folder (`<trial>/seed=0`) and the Tune result of its trial."""
+
+    path: str
+    result: Any

@@ -10,11 +10,12 @@ import torch
 from ray.rllib.core.columns import Columns
 from ray.rllib.evaluation.postprocessing import Postprocessing
 
-from rllib_conv import envs
-from rllib_conv.envs.rllib_adapter import PettingZooMultiAgentEnv
-from rllib_conv.training.algorithm import build_ppo_config
+from rllib_conv.envs.replicated_game import ReplicatedGame, replicated_env_config
+from rllib_conv.modules.stacked_multi import STACK_ID
+from rllib_conv.training.algorithm import Replica, build_ppo_config
 from rllib_conv.training.ego_setup import EgoSetup, resolve
 from rllib_conv.training.experiment import ExperimentConfig
+from rllib_conv.training.replica_export import replica_module
 
 
 def bandit_setup(**overrides) -> EgoSetup:
@@ -22,11 +23,34 @@ def bandit_setup(**overrides) -> EgoSetup:
     return resolve(ExperimentConfig(population="bandit-s2-hand", **overrides))
 
 
-def build_learner(setup: EgoSetup):
-    """A built MarginalPPOLearner for `setup`, in this process (no Ray actors)."""
-    env = PettingZooMultiAgentEnv(envs.make(setup.population.env, **setup.env_config))
+def build_learner(setup: EgoSetup | list[Replica]):
+    """A built MarginalPPOLearner for `setup` (one replica) or packed `Replica`s, in this process (no Ray actors).
+
+    Its module is a `StackedEgoMultiRLModule`: the weights under `stack`, one `HeadView`
+    per head (`ego@<partner>#<r>`, `learner.module.head_ids()`), the fixed partners.
+    """
+    replicas = [Replica(setup)] if isinstance(setup, EgoSetup) else setup
+    first = replicas[0].setup
+    env = ReplicatedGame(replicated_env_config(first.population.env, first.env_config, [r.own_seed for r in replicas], 0))
     torch.manual_seed(0)
     return build_ppo_config(setup).build_learner(env=env)
+
+
+def plain_ego(setup: EgoSetup):
+    """The plain modules (`ConventionMultiRLModule`: `task`, `ego@<partner>`, partners) of a fresh learner's ego for `setup`,
+    the form every trained ego is exported in."""
+    return replica_module(build_learner(setup).module, 0, Replica(setup))
+
+
+def task_weights(learner, replica: int = 0) -> dict[str, torch.Tensor]:
+    """Replica `replica`'s task module weights in a built learner, under the plain `TaskModule`'s names."""
+    return learner.module[STACK_ID].task_state(replica)
+
+
+def head_weights(learner, head_id: str) -> dict[str, torch.Tensor]:
+    """The weights of head view `head_id` (`ego@p#r`) in a built learner, under the plain `PartnerHeadModule`'s names."""
+    view = learner.module[head_id]
+    return learner.module[STACK_ID].head_state(view.replica, view.head)
 
 
 def hand_batch(head_ids: list[str], rows: int = 6, num_contexts: int = 4, num_arms: int = 8, seed: int = 0) -> dict:

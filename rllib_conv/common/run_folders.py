@@ -5,15 +5,20 @@ through this module, so the layout is written down once:
 
     <storage>/<experiment>/            one Tune experiment (`rllib-conv train`, `sweep`, a stage)
         experiment.yaml                the experiment as given (grids kept)
-        <trial>/config.yaml            a trained ego's resolved config
-        <trial>/eval.json              its final evaluation
         <trial>/progress.csv           Tune's per-iteration metrics (result.json alike)
-        <trial>/checkpoint_<n>/        sealed RLlib checkpoints; modules under learner_group/learner/rl_module/
+        <trial>/checkpoint_<n>/        sealed RLlib checkpoints of the whole algorithm (for resuming)
+        <trial>/seed=<s>/              one trained ego (a replica of the trial; older runs: the trial itself):
+            config.yaml                its resolved config
+            progress.csv               its per-iteration metrics
+            checkpoint_000000/         its sealed modules, under learner_group/learner/rl_module/
+            eval.json                  its final evaluation (written last)
 
     <reproduce out>/<game>/            one game of `rllib-conv reproduce`
         plan.json                      the plan that ran (game, seeds, quick, train_steps)
         <stage>.done                   a finished stage: "<seconds> s", then one covered item a line
-        runs/<population>__<label>/    trained egos; runs/adapt-<name>/, zeroshot-<name>/, selfplay-<name>/: Tune folders of later stages
+        runs/<population>__<label>/    trained egos: <grid point>/seed=<s>/ as above, experiment.yaml
+        runs/train-stage-<hash>/       the train stage's Tune run (its trials' checkpoints); adapt-stage-<hash>/,
+                                       zeroshot-stage-<hash>/, selfplay-<name>/: those of later stages
         populations/<name>/            self-play populations (population.json, selfplay_report.csv)
         adaptation/<name>.csv          adaptation curves
         zeroshot/<name>.csv            zero-shot results
@@ -46,7 +51,10 @@ SELFPLAY_TRIAL_FILE = "selfplay.json"  # one self-play pair's outcome, in its tr
 ADAPT_PREFIX = "adapt-"  # adaptation `name` runs as the Tune experiment `adapt-<name>`
 ZEROSHOT_PREFIX = "zeroshot-"
 SELFPLAY_PREFIX = "selfplay-"
-STAGE_PREFIXES: tuple[str, ...] = (ADAPT_PREFIX, ZEROSHOT_PREFIX, SELFPLAY_PREFIX)
+# A `reproduce` stage runs all its experiments as one Tune run `<stage>-stage-<hash>`; its trials
+# write their results into the experiments' own folders.
+TRAIN_STAGE_PREFIX = "train-stage-"
+STAGE_PREFIXES: tuple[str, ...] = (ADAPT_PREFIX, ZEROSHOT_PREFIX, SELFPLAY_PREFIX, TRAIN_STAGE_PREFIX)
 
 # --- a reproduction's game folder ---------------------------------------------------------
 PLAN_FILE = "plan.json"
@@ -76,15 +84,35 @@ def split_experiment(name: str) -> tuple[str, str]:
     return (population, label) if sep else (name, "")
 
 
+REPLICA_PREFIX = "seed="
+
+
+def replica_folder(trial: Path, seed: int) -> Path:
+    """Where the trained ego of seed `seed` of Tune trial folder `trial` is exported."""
+    return trial / f"{REPLICA_PREFIX}{seed}"
+
+
+def experiment_of(trial: str | Path) -> Path:
+    """The experiment folder of a trained-ego folder (a replica's is two levels up, an older trial's one)."""
+    trial = Path(trial)
+    return trial.parent.parent if trial.name.startswith(REPLICA_PREFIX) else trial.parent
+
+
+def trial_name(trial: str | Path) -> str:
+    """A trained ego's name, unique within its experiment: `<Tune trial>/seed=<s>` (older runs: the trial folder's name)."""
+    trial = Path(trial)
+    return f"{trial.parent.name}/{trial.name}" if trial.name.startswith(REPLICA_PREFIX) else trial.name
+
+
 def trial_folders(path: str | Path) -> list[Path]:
-    """The trained-ego trial folders under `path` (itself, or every trial of an experiment folder).
+    """The trained-ego folders under `path` (itself, or every one of an experiment folder, replicas included).
 
     ValueError when `path` holds neither.
     """
     path = Path(path)
     if (path / CONFIG_FILE).is_file():
         return [path]
-    trials = sorted(p.parent for p in path.glob(f"*/{CONFIG_FILE}"))
+    trials = sorted(p.parent for pattern in (f"*/{CONFIG_FILE}", f"*/{REPLICA_PREFIX}*/{CONFIG_FILE}") for p in path.glob(pattern))
     if not trials:
         raise ValueError(f"{str(path)!r} is neither a trained-ego trial folder nor an experiment folder holding some ({CONFIG_FILE} missing)")
     return trials

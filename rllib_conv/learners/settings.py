@@ -6,7 +6,7 @@ without importing RLlib.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 
@@ -19,7 +19,12 @@ class LearnerSettings:
     adam_eps: float = 1e-5
     z_lr_scale: float = 1.0
     head_l2: float = 0.0
+    # The learner's own minibatch loop (`MarginalPPOLearner.update`); False runs RLlib's.
+    fused_update: bool = True
+    # Module ID -> seed of the generator shuffling its minibatches (packed replicas shuffle
+    # as each would alone); modules without one shuffle with NumPy's global RNG, as RLlib does.
+    shuffle_seeds: dict[str, int] = field(default_factory=dict)
 
     def config_dict(self) -> dict[str, Any]:
         """The `learner_config_dict` that carries these settings to every learner."""
-        return {**asdict(self), "freeze": list(self.freeze)}
+        return {**asdict(self), "freeze": list(self.freeze), "shuffle_seeds": dict(self.shuffle_seeds)}

@@ -1,11 +1,16 @@
-"""Agent -> module mapping: every episode is played with one partner, partners in turn."""
+"""Agent -> module mapping: every episode is played with one partner, partners in turn.
+
+In a `ReplicatedGame` the agents carry their replica (`player_0#2`) and map to that
+replica's modules (`ego@p#2`, `partner@p#2`); every replica counts episodes the same way,
+so each pairs its episodes with its partners exactly as it would alone.
+"""
 
 from __future__ import annotations
 
 from collections import OrderedDict
 from typing import Any
 
-from rllib_conv.modules.multi import AGG_HEAD_ID, ego_id, partner_id
+from rllib_conv.modules.multi import AGG_HEAD_ID, REPLICA_SEPARATOR, ego_id, partner_id, replica_id
 
 _CACHE = 4096
 
@@ -19,10 +24,14 @@ class PartnerMapping:
     spread evenly over partners and the assignment is reproducible.
     """
 
-    def __init__(self, partners: list[str], ego_agent: str, partner_agent: str, shared_head: bool = False) -> None:
-        if not partners:
+    def __init__(
+        self, partners: list[str], ego_agent: str, partner_agent: str, shared_head: bool = False, replica_partners: list[list[str]] | None = None
+    ) -> None:
+        if not partners or (replica_partners is not None and not all(replica_partners)):
             raise ValueError("PartnerMapping needs at least one partner")
         self.partners = list(partners)
+        # Replica r's partners (default: `partners` for every replica).
+        self.replica_partners = [list(p) for p in replica_partners] if replica_partners is not None else None
         self.ego_agent = ego_agent
         self.partner_agent = partner_agent
         self.shared_head = shared_head
@@ -45,6 +54,10 @@ class PartnerMapping:
 
     def partner_for(self, episode_id: str) -> str:
         """Return the partner assigned to `episode_id`, assigning the next one on first sight."""
+        return self.partners[self._index_for(episode_id)]
+
+    def _index_for(self, episode_id: str) -> int:
+        """The index (into `partners`) assigned to `episode_id`, assigning the next one on first sight."""
         if episode_id not in self._assigned:
             if self._focus is not None:
                 self._assigned[episode_id] = self._focus
@@ -53,12 +66,17 @@ class PartnerMapping:
                 self._next += 1
             if len(self._assigned) > _CACHE:
                 self._assigned.popitem(last=False)
-        return self.partners[self._assigned[episode_id]]
+        return self._assigned[episode_id]
 
     def __call__(self, agent_id: str, episode: Any, **kwargs: Any) -> str:
-        name = self.partner_for(episode.id_)
-        if agent_id == self.ego_agent:
-            return AGG_HEAD_ID if self.shared_head else ego_id(name)
-        if agent_id == self.partner_agent:
-            return partner_id(name)
+        agent, sep, tag = agent_id.rpartition(REPLICA_SEPARATOR)
+        replica = int(tag) if sep and tag.isdigit() else None
+        agent = agent if replica is not None else agent_id
+        index = self._index_for(episode.id_)
+        own = self.replica_partners[replica] if replica is not None and self.replica_partners is not None else self.partners
+        name = own[index % len(own)]
+        if agent == self.ego_agent:
+            return replica_id(AGG_HEAD_ID if self.shared_head else ego_id(name), replica)
+        if agent == self.partner_agent:
+            return replica_id(partner_id(name), replica)
         raise ValueError(f"agent {agent_id!r} is neither the ego ({self.ego_agent!r}) nor the partner ({self.partner_agent!r})")

@@ -4,6 +4,10 @@ Policy logits = task logits + head logits; value = task value + head value. The 
 holds an *unregistered* reference to the shared `TaskModule` (set by
 `ConventionMultiRLModule`), so the task weights are not among the head's parameters:
 they live in one place, get one optimizer and are saved once.
+
+With `init_seed` its initial weights, and with `sample_seed` the actions it samples while
+exploring, come from generators of its own: a head then explores exactly as it would alone,
+whatever other heads (other replicas' ones) sample beside it in the same env runner.
 """
 
 from __future__ import annotations
@@ -15,7 +19,7 @@ from ray.rllib.core.columns import Columns
 from ray.rllib.core.rl_module.apis.value_function_api import ValueFunctionAPI
 from ray.rllib.core.rl_module.torch import TorchRLModule
 
-from rllib_conv.modules.mlp import masked_logits, mlp
+from rllib_conv.modules.mlp import masked_logits, mlp, seeded_generator
 from rllib_conv.modules.task_module import TaskModule, split_obs
 
 TASK_LOGITS = "task_logits"
@@ -23,7 +27,7 @@ TASK_VALUE = "task_value"
 
 
 class PartnerHeadModule(TorchRLModule, ValueFunctionAPI):
-    """Ego head for one partner. `model_config`: `hidden`, `z_dim`, `use_task_logits` (default True).
+    """Ego head for one partner. `model_config`: `hidden`, `z_dim`, `use_task_logits` (default True), `init_seed`.
 
     `use_task_logits=False` is BaselineModular: the policy uses the head's logits only.
     """
@@ -34,8 +38,9 @@ class PartnerHeadModule(TorchRLModule, ValueFunctionAPI):
         z_dim = int(cfg.get("z_dim") or hidden)
         num_actions = int(self.action_space.n)
         self.use_task_logits = bool(cfg.get("use_task_logits", True))
-        self.pi = mlp([z_dim, hidden, hidden, num_actions], out_gain=0.01)
-        self.vf = mlp([z_dim, hidden, hidden, 1], out_gain=1.0)
+        g = seeded_generator(cfg.get("init_seed"))
+        self.pi = mlp([z_dim, hidden, hidden, num_actions], out_gain=0.01, generator=g)
+        self.vf = mlp([z_dim, hidden, hidden, 1], out_gain=1.0, generator=g)
         self.__dict__["_task"] = None  # bypasses nn.Module registration on purpose
 
     @property

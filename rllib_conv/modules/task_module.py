@@ -7,7 +7,9 @@ partners, which is what the regulariser trains it to be.
 
 With `oracle` set in `model_config` (`{"env": ..., "env_config": ...}`) the task
 logits are replaced by the true marginals: 0 on optimal actions, the float minimum
-elsewhere (the paper's "oracle" curve).
+elsewhere (the paper's "oracle" curve). With `init_seed` the initial weights come from a
+generator of their own, so a module starts the same whichever other modules are built
+beside it (replicas packed into one algorithm start as each would alone).
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ from ray.rllib.core.rl_module.torch import TorchRLModule
 
 from rllib_conv.envs.oracles import oracle_for
 from rllib_conv.envs.rllib_adapter import RLLIB_MASK_KEY, RLLIB_OBS_KEY
-from rllib_conv.modules.mlp import masked_logits, mlp
+from rllib_conv.modules.mlp import masked_logits, mlp, seeded_generator
 
 
 class TaskOutput(NamedTuple):
@@ -44,7 +46,7 @@ class TaskModule(TorchRLModule, ValueFunctionAPI):
     """Shared task module: observation -> (z, task logits), and a task value.
 
     `model_config` keys: `hidden` (layer size), `z_dim` (latent size, default = hidden),
-    `oracle` (optional, see the module docstring).
+    `oracle` and `init_seed` (optional, see the module docstring).
     """
 
     def setup(self) -> None:
@@ -54,9 +56,10 @@ class TaskModule(TorchRLModule, ValueFunctionAPI):
         obs_space = self.observation_space[RLLIB_OBS_KEY] if hasattr(self.observation_space, "spaces") else self.observation_space
         obs_dim = int(np.prod(obs_space.shape))
         num_actions = int(self.action_space.n)
-        self.pi_tower = mlp([obs_dim, hidden, self.z_dim], final_relu=True)
-        self.pi_out = mlp([self.z_dim, num_actions], out_gain=0.01)
-        self.vf = mlp([obs_dim, hidden, hidden, 1], out_gain=1.0)
+        g = seeded_generator(cfg.get("init_seed"))
+        self.pi_tower = mlp([obs_dim, hidden, self.z_dim], final_relu=True, generator=g)
+        self.pi_out = mlp([self.z_dim, num_actions], out_gain=0.01, generator=g)
+        self.vf = mlp([obs_dim, hidden, hidden, 1], out_gain=1.0, generator=g)
         self._oracle = None
         if cfg.get("oracle"):
             self._oracle = oracle_for(cfg["oracle"]["env"], cfg["oracle"].get("env_config", {}))

@@ -1,22 +1,28 @@
 """Adapt trained egos to new partners: keep the task module, add a fresh head, train with lam 0.
 
-Every (trained ego, new partner) pair is one Tune trial (`AdaptTrainable`): the ego is
-rebuilt from the run's resolved config with the new partner as its only partner, the
-task module's weights (and, for single-network methods, the head's) load from the run's
-last checkpoint, and the ego is evaluated before every update. All methods go through
-this one pipeline; `scratch` starts from a fresh single network instead. With
-`head_init: pick` the first `pick_steps` env steps try the fresh head and each training
-partner's head on the new partner instead of training, and the best one's weights start
-the new head (`head_pick`).
+One adaptation curve is one (trained ego, new partner) pair: the ego is rebuilt from the
+run's resolved config with the new partner as its only partner, the task module's weights
+(and, for single-network methods, the head's) load from the run's checkpoint, and the ego
+is evaluated before every update. All methods go through this one pipeline; `scratch`
+starts from a fresh single network instead. With `head_init: pick` the first `pick_steps`
+env steps try the fresh head and each training partner's head on the new partner instead
+of training, and the best one's weights start the new head (`head_pick`).
 
-Output: one tidy CSV, one row per evaluation point: run, method, lam, z_dim, seed,
-partner, steps, mean_return, stderr, exact_return (one-step games only).
+Curves train in packs: one Tune trial (`AdaptTrainable`) holds up to `max_pack` curves of
+egos that differ only in seed and partner, as replicas of one algorithm (each with its own
+modules, seeds and game copy, so it trains as it would alone). Several adapt configs (a
+whole `reproduce` stage) run as one Tune run (`run_adaptations`), so no core idles. A pack
+writes its curves (`curves.csv` in its trial folder) when it finishes; a run that is
+killed and started again keeps finished packs and runs the others again from their start.
+
+Output: one tidy CSV per adapt config, one row per evaluation point: run, method, lam,
+z_dim, seed, partner, steps, mean_return, stderr, exact_return (one-step games only).
 """
 
 from __future__ import annotations
 
-import json
 import math
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -29,32 +35,49 @@ from rllib_conv.common.methods import method
 from rllib_conv.common.run_folders import ADAPT_PREFIX, RL_MODULE_DIR, trial_folders
 from rllib_conv.envs.defaults import ADAPT_DEFAULTS
 from rllib_conv.modules.multi import AGG_HEAD_ID, TASK_ID
+from rllib_conv.modules.stacked_multi import STACK_ID
 from rllib_conv.pipelines.adapt_config import AdaptConfig
-from rllib_conv.training.algorithm import build_ppo_config
+from rllib_conv.training.algorithm import Replica, build_algorithm, packing_key
+from rllib_conv.training.callbacks import STEPS_DONE, STEPS_TOTAL, StageProgress
 from rllib_conv.training.checkpoints import last_checkpoint
 from rllib_conv.training.ego_setup import EgoSetup, setup_for
 from rllib_conv.training.evaluate import ego_head_partner, ego_return, load_module
 from rllib_conv.training.experiment import ExperimentConfig, trial_config
 from rllib_conv.training.head_pick import HeadPick, pick_head
+from rllib_conv.training.packs import cluster_cpus, packs, write_tables
+from rllib_conv.training.replica_export import copy_replica, replica_module
+from rllib_conv.training.replica_steps import is_parallel, replica_env_steps
 from rllib_conv.training.trainable import AlgorithmTrainable
-from rllib_conv.training.tuning import fit
-from rllib_conv.training.weights import load_weights, push_learner_weights
+from rllib_conv.training.tuning import fit, job_param_space, spec_name
+from rllib_conv.training.weights import learner_module, push_learner_weights
 
-PAIR_KEY = "adapt_pair"
-STEPS_FILE = "adapt_steps.json"
+CURVES_FILE = "curves.csv"  # a finished pack's curves, in its trial folder
+STAGE_PREFIX = f"{ADAPT_PREFIX}stage-"  # the Tune run of several adapt configs at once
 FRESH = "fresh"  # the new partner's own (fresh) head, as a `head_pick` candidate
 PICK_SEED = 1_000_000  # head-picking episodes are seeded apart from the evaluation episodes
 CURVE_COLUMNS = ["run", "method", "lam", "z_dim", "seed", "partner", "steps", "mean_return", "stderr", "exact_return"]
 
 
-def adapt_setup(cfg: AdaptConfig) -> tuple[EgoSetup, dict[str, str], ExperimentConfig]:
-    """The ego setup adapting run `cfg.run` to partner `cfg.partner`, the weights to load, the run's config."""
-    trial = Path(cfg.run)
+@dataclass
+class Curve:
+    """One adaptation curve to run: the ego setup adapting `run` to `partner`, the weights it starts from, its labels."""
+
+    run: str
+    partner: str
+    setup: EgoSetup
+    load: dict[str, str]
+    trained: ExperimentConfig
+    label: dict[str, Any]
+
+
+def adapt_curve(cfg: AdaptConfig, run: str, partner: str) -> Curve:
+    """The curve adapting the trained ego in folder `run` to `partner` under `cfg`; ValueError if it cannot."""
+    trial = Path(run)
     trained = trial_config(trial)
     pop = partners.get(cfg.population or trained.population)
-    entry = next((e for e in pop.partners if e.name == cfg.partner), None)
+    entry = next((e for e in pop.partners if e.name == partner), None)
     if entry is None:
-        raise ValueError(f"population {pop.name!r} has no partner {cfg.partner!r}; it has {[e.name for e in pop.partners]}")
+        raise ValueError(f"population {pop.name!r} has no partner {partner!r}; it has {[e.name for e in pop.partners]}")
     game = trained.env
     if pop.env != game:
         raise ValueError(f"population {pop.name!r} is for {pop.env!r}, but the ego in {str(trial)!r} was trained on {game!r}")
@@ -63,8 +86,8 @@ def adapt_setup(cfg: AdaptConfig) -> tuple[EgoSetup, dict[str, str], ExperimentC
             f"head_init 'pick' needs one head per training partner, but the ego in {str(trial)!r} was trained with "
             f"method {trained.method!r} (one shared head)"
         )
-    defaults = ADAPT_DEFAULTS.get(game, {"every": trained.ppo.rollout_per_partner, "steps": 20 * trained.ppo.rollout_per_partner})
-    every = cfg.every or defaults["every"]
+    every, _ = protocol(cfg, trained)
+    defaults = ADAPT_DEFAULTS.get(game, {})
     ppo = trained.ppo.model_dump()
     ppo.update({"rollout_per_partner": every, **{k: defaults[k] for k in ("minibatch_size", "num_epochs") if k in defaults}, **cfg.ppo})
     scratch = cfg.method == "scratch"
@@ -82,79 +105,125 @@ def adapt_setup(cfg: AdaptConfig) -> tuple[EgoSetup, dict[str, str], ExperimentC
     load = {} if scratch else {TASK_ID: str(checkpoint / TASK_ID)}
     if method(exp.method).single_head and not scratch:
         load[AGG_HEAD_ID] = str(checkpoint / AGG_HEAD_ID)
-    return setup_for(exp, pop, [entry]), load, trained
+    label = {
+        "run": run,
+        "method": cfg.method or trained.method,
+        "lam": trained.lam,
+        "z_dim": trained.model.z_dim or trained.model.hidden,
+        "seed": trained.seed,
+        "partner": partner,
+    }
+    return Curve(run, partner, setup_for(exp, pop, [entry]), load, trained, label)
+
+
+def protocol(cfg: AdaptConfig, trained: ExperimentConfig) -> tuple[int, int]:
+    """(every, steps): env steps between evaluations (one update each) and the curve's length, defaults per game."""
+    defaults = ADAPT_DEFAULTS.get(trained.env, {"every": trained.ppo.rollout_per_partner, "steps": 20 * trained.ppo.rollout_per_partner})
+    return cfg.every or defaults["every"], cfg.steps or defaults["steps"]
 
 
 class AdaptTrainable(AlgorithmTrainable):
-    """One adaptation curve: evaluate, update, evaluate, ... until `steps` env steps."""
+    """A pack of adaptation curves as replicas of one algorithm: evaluate all, update all, ... until `steps` env steps.
 
-    def setup(self, config: dict[str, Any]) -> None:
-        super().setup(config)
-        self.cfg = AdaptConfig.model_validate({**{k: v for k, v in config.items() if k != PAIR_KEY}, **config.get(PAIR_KEY, {})})
-        self.ego, load, trained = adapt_setup(self.cfg)
-        defaults = ADAPT_DEFAULTS.get(self.ego.population.env, {})
-        self.total = self.cfg.steps or defaults.get("steps", 20 * self.ego.exp.ppo.rollout_per_partner)
-        self.algo = build_ppo_config(self.ego, load).build_algo()
-        self.label = {
-            "run": self.cfg.run,
-            "method": self.cfg.method or trained.method,
-            "lam": trained.lam,
-            "z_dim": trained.model.z_dim or trained.model.hidden,
-            "seed": trained.seed,
-            "partner": self.cfg.partner,
-        }
-        self.steps = 0
-        self.offset = 0  # env steps spent picking the head, before the first update
-        self.picked: str | None = None
+    Its config is a job (`job_param_space`): `config`, the adapt config, and `curves`, the
+    (run, partner) pairs of the pack. The curves are checked to be packable (`packing_key`).
+    """
 
-    def _pick_head(self) -> HeadPick:
-        """Try the fresh head and every trained head on the new partner; copy the winner into the new head."""
-        entry, new_head = self.ego.train[0], self.ego.head_for(self.ego.train[0].name)
-        trained = load_module(last_checkpoint(self.cfg.run))
-        seed = self.cfg.seed + PICK_SEED
-        players = {FRESH: ego_head_partner(self.algo.env_runner.module, new_head, seed)}
-        players |= {mid: ego_head_partner(trained, mid, seed) for mid in trained.head_ids()}
-        game, env_config = self.ego.population.env, self.ego.env_config
-        budget = self.cfg.pick_steps or self.ego.exp.ppo.rollout_per_partner
-        pick = pick_head(lambda: envs.make(game, **env_config), players, entry.build, self.ego.ego_agent, self.ego.partner_agent, budget, seed)
-        if pick.chosen != FRESH:
-            weights = {new_head: trained[pick.chosen].state_dict()}
-            self.algo.learner_group.foreach_learner(lambda learner: load_weights(learner.module, weights))
+    def outputs_complete(self, config: dict[str, Any]) -> bool:
+        return (self.trial_folder / CURVES_FILE).is_file()
+
+    def build(self, config: dict[str, Any]) -> None:
+        job = config
+        self.cfg = AdaptConfig.model_validate(job["config"])
+        self.curves = [adapt_curve(self.cfg, c["run"], c["partner"]) for c in job["curves"]]
+        self.replicas = [Replica(c.setup, c.load) for c in self.curves]
+        self.algo = build_algorithm(self.replicas)
+        self.total = protocol(self.cfg, self.curves[0].trained)[1]
+        self.parallel = is_parallel(self.algo)
+        module = learner_module(self.algo)
+        self.plain = [replica_module(module, r, rep) for r, rep in enumerate(self.replicas)]  # evaluation copies
+        k = len(self.curves)
+        self.steps, self.offset = [0] * k, [0] * k  # offset: env steps spent picking the head, before the first update
+        self.picked: list[str | None] = [None] * k
+        self.finished = [False] * k
+        self.rows: list[dict[str, Any]] = []
+
+    def _pick_heads(self) -> list[HeadPick]:
+        """Per curve: try the fresh head and every trained head on the new partner; copy the winner into the new head."""
+        module, picks, chosen = learner_module(self.algo), [], {}
+        for r, (curve, rep) in enumerate(zip(self.curves, self.replicas)):
+            plain = copy_replica(module, r, rep, self.plain[r])
+            entry, new_head = curve.setup.train[0], curve.setup.head_for(curve.setup.train[0].name)
+            trained = load_module(last_checkpoint(curve.run))
+            seed = self.cfg.seed + PICK_SEED
+            players = {FRESH: ego_head_partner(plain, new_head, seed)}
+            players |= {mid: ego_head_partner(trained, mid, seed) for mid in trained.head_ids()}
+            game, env_config = curve.setup.population.env, curve.setup.env_config
+            budget = self.cfg.pick_steps or curve.setup.exp.ppo.rollout_per_partner
+            pick = pick_head(lambda: envs.make(game, **env_config), players, entry.build, curve.setup.ego_agent, curve.setup.partner_agent, budget, seed)
+            if pick.chosen != FRESH:
+                chosen[r] = trained[pick.chosen].state_dict()
+            self.offset[r] = max(pick.steps, budget)
+            picks.append(pick)
+        if chosen:
+
+            def load(learner: Any) -> None:
+                for r, state in chosen.items():
+                    learner.module[STACK_ID].load_head(r, 0, state)
+
+            self.algo.learner_group.foreach_learner(load)
             push_learner_weights(self.algo)
-        self.offset = max(pick.steps, budget)
-        return pick
+        return picks
 
-    def step(self) -> dict[str, Any]:
-        entry = self.ego.train[0]
-        r = ego_return(
-            self.algo.env_runner.module,
-            self.ego.head_for(entry.name),
-            self.ego.population.env,
-            self.ego.env_config,
-            entry.build(),
-            self.ego.ego_agent,
-            self.ego.partner_agent,
-            self.cfg.episodes,
-            seed=self.cfg.seed + self.iteration,
-        )
-        row = {**self.label, "steps": self.steps, "mean_return": r["mean"], "stderr": r["stderr"], "exact_return": r.get("exact", math.nan)}
-        done = self.steps >= self.total
-        if not done and self.cfg.head_init == "pick" and self.picked is None:
-            self.picked = self._pick_head().chosen
-            self.steps = self.offset
-        elif not done:
-            self.steps = self.offset + int(self.algo.train()["env_runners"]["num_env_steps_sampled_lifetime"])
-        return {**row, "done": done, **({"picked": self.picked} if self.picked else {})}
+    def _evaluate(self) -> list[float]:
+        """Evaluate every unfinished curve at its current steps (a row each); mark those at their end finished."""
+        module, returns = learner_module(self.algo), []
+        for r, (curve, rep) in enumerate(zip(self.curves, self.replicas)):
+            if self.finished[r]:
+                continue
+            entry = curve.setup.train[0]
+            plain = copy_replica(module, r, rep, self.plain[r])
+            score = ego_return(
+                plain, curve.setup.head_for(entry.name), curve.setup.population.env, curve.setup.env_config, entry.build(),
+                curve.setup.ego_agent, curve.setup.partner_agent, self.cfg.episodes, seed=self.cfg.seed + self.iteration,
+            )
+            row = {**curve.label, "steps": self.steps[r], "mean_return": score["mean"], "stderr": score["stderr"], "exact_return": score.get("exact", math.nan)}
+            self.rows.append({**row, **({"picked": self.picked[r]} if self.picked[r] else {})})
+            returns.append(score["mean"])
+            self.finished[r] = self.steps[r] >= self.total
+        return returns
 
-    def save_extra(self, checkpoint_dir: Path) -> None:
-        (checkpoint_dir / STEPS_FILE).write_text(json.dumps({"steps": self.steps, "offset": self.offset, "picked": self.picked}))
+    def advance(self) -> dict[str, Any]:
+        with self.timings.measure("evaluate"):
+            returns = self._evaluate()
+        done = all(self.finished)
+        if done:
+            self._write_curves()
+        elif self.cfg.head_init == "pick" and self.picked[0] is None:
+            with self.timings.measure("evaluate"):
+                self.picked = [p.chosen for p in self._pick_heads()]
+            self.steps = list(self.offset)
+        else:
+            with self.timings.measure("iterate"):
+                result = self.algo.train()
+            self.steps = [self.offset[r] + replica_env_steps(result, c.setup, r, self.parallel) for r, c in enumerate(self.curves)]
+        return {
+            "steps": min(self.steps),
+            "mean_return": sum(returns) / len(returns),
+            "curves": len(self.curves),
+            STEPS_DONE: sum(min(s, self.total) for s in self.steps),
+            STEPS_TOTAL: self.total * len(self.curves),
+            "done": done,
+        }
 
-    def load_extra(self, checkpoint_dir: Path) -> None:
-        saved = json.loads((checkpoint_dir / STEPS_FILE).read_text())
-        self.steps, self.offset, self.picked = saved["steps"], saved.get("offset", 0), saved.get("picked")
+    def _write_curves(self) -> None:
+        path = self.trial_folder / CURVES_FILE
+        tmp = path.with_suffix(".tmp")
+        pd.DataFrame(self.rows).to_csv(tmp, index=False)
+        tmp.replace(path)  # whole or absent: a pack counts as finished only with its curves
 
 
-def adaptation_trials(cfg: AdaptConfig) -> list[dict[str, str]]:
+def adaptation_curves(cfg: AdaptConfig) -> list[dict[str, str]]:
     """Every (run, partner) pair to adapt, validated before anything runs."""
     pairs = []
     for run in cfg.runs:
@@ -172,19 +241,37 @@ def adaptation_trials(cfg: AdaptConfig) -> list[dict[str, str]]:
     return pairs
 
 
+def pack_curves(cfg: AdaptConfig, pairs: list[dict[str, str]], cpus: int, stage_curves: int) -> list[list[dict[str, str]]]:
+    """The curves of `cfg` in packs (`packs`): curves of packable egos together, at most `cfg.max_pack` a pack."""
+    return packs(pairs, lambda pair: packing_key(adapt_curve(cfg, pair["run"], pair["partner"]).setup), cpus, cfg.max_pack, stage_curves)
+
+
+def run_adaptations(
+    raws: list[dict[str, Any]], out: str | Path = "adaptation", storage: str | Path = "runs", address: str | None = None, label: str | None = None
+) -> dict[str, pd.DataFrame]:
+    """Adapt every run of every adapt config in `raws` in one Tune run; write and return each config's curves CSV by name.
+
+    One config runs as the Tune experiment `adapt-<name>`; several as `adapt-stage-<hash>`
+    (their specs' hash: the same configs continue the same run). `label` names the stage in
+    its progress line (a `StageProgress`); without it every result prints a line.
+    """
+    cfgs = [validate(raw, schema=AdaptConfig)[0] for raw in raws]
+    names = [c.name for c in cfgs]
+    if len(set(names)) < len(names):
+        raise ValueError(f"adapt configs must have different names; got {names}")
+    curves = [adaptation_curves(cfg) for cfg in cfgs]
+    for cfg, pairs in zip(cfgs, curves):
+        for pair in pairs:
+            adapt_curve(cfg, pair["run"], pair["partner"])  # wrong game, missing weights: fail early
+    cpus, total = cluster_cpus(address), sum(map(len, curves))
+    jobs = [{"index": i, "config": raw, "curves": pack} for i, (raw, cfg, pairs) in enumerate(zip(raws, cfgs, curves)) for pack in pack_curves(cfg, pairs, cpus, total)]
+    spec: Any = raws[0] if len(raws) == 1 else {"experiments": names, "configs": raws}
+    name = f"{ADAPT_PREFIX}{cfgs[0].name}" if len(raws) == 1 else spec_name(STAGE_PREFIX, spec)
+    progress = StageProgress(label) if label else "lines"
+    results = fit(AdaptTrainable, spec, job_param_space(jobs), name, storage, address, tune.CheckpointConfig(checkpoint_at_end=False), progress)
+    return write_tables(results, cfgs, CURVES_FILE, CURVE_COLUMNS, ["run", "partner", "steps"], Path(out), "adaptation")
+
+
 def run_adaptation(raw: dict[str, Any], out: str | Path = "adaptation", storage: str | Path = "runs", address: str | None = None) -> pd.DataFrame:
     """Adapt every run in `raw` to every chosen partner; write and return the tidy curves CSV."""
-    cfg = validate(raw, schema=AdaptConfig)[0]
-    pairs = adaptation_trials(cfg)
-    for pair in pairs:
-        adapt_setup(AdaptConfig.model_validate({**raw, **pair}))  # wrong game, missing weights: fail early
-    # One trial per (run, partner) pair; Tune grids cannot zip two axes, so the pair is one value.
-    results = fit(AdaptTrainable, raw, {**raw, PAIR_KEY: tune.grid_search(pairs)}, f"{ADAPT_PREFIX}{cfg.name}", storage, address)
-    frames = [r.metrics_dataframe[CURVE_COLUMNS] for r in results if r.metrics_dataframe is not None and not r.error]
-    curves = pd.concat(frames, ignore_index=True).sort_values(["run", "partner", "steps"]) if frames else pd.DataFrame(columns=CURVE_COLUMNS)
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    curves.to_csv(out / f"{cfg.name}.csv", index=False)
-    if results.errors:
-        raise RuntimeError(f"{len(results.errors)} adaptation trial(s) failed; the others are in {out / (cfg.name + '.csv')}")
-    return curves
+    return next(iter(run_adaptations([raw], out, storage, address).values()))

@@ -38,9 +38,9 @@ class AdaptConfig(Strict):
     episodes: PositiveInt = 200
     ppo: dict[str, Any] = Field(default_factory=dict)
     seed: int = 0
-    # Set per Tune trial: which run and which partner this trial adapts.
-    run: str | None = None
-    partner: str | None = None
+    # Curves trained together as replicas of one algorithm (speed only: each trains as it would
+    # alone, except in games of varying length, Hanabi, where a copy waits for the longest).
+    max_pack: PositiveInt = 32
 
     @model_validator(mode="after")
     def _consistent(self) -> "AdaptConfig":

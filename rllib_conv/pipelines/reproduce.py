@@ -53,25 +53,29 @@ from rllib_conv.common.run_folders import (
     POPULATION_FILE,
     POPULATIONS_DIR,
     RUNS_DIR,
+    SPEC_FILE,
     SUPERSEDED_DIR,
     ZEROSHOT_DIR,
     ZEROSHOT_PREFIX,
     experiment_name,
+    experiment_of,
     marker_path,
     read_marker,
+    read_trial_config,
     split_experiment,
+    trial_folders,
     write_marker,
 )
 from rllib_conv.envs.defaults import GAME_DEFAULTS
 from rllib_conv.envs.oracles import has_oracle
-from rllib_conv.pipelines.adapt import run_adaptation
+from rllib_conv.pipelines.adapt import run_adaptations
 from rllib_conv.pipelines.adapt_config import AdaptConfig
 from rllib_conv.pipelines.marginals import marginal_report
 from rllib_conv.pipelines.plans import GAMES, AdaptVariant, Plan, TrainedVariant, narrow, plan_for
 from rllib_conv.pipelines.selfplay import train_population
 from rllib_conv.pipelines.selfplay_config import SelfPlayConfig
-from rllib_conv.pipelines.train import run
-from rllib_conv.pipelines.zeroshot import run_zeroshot
+from rllib_conv.pipelines.train import train_stage
+from rllib_conv.pipelines.zeroshot import run_zeroshots
 from rllib_conv.pipelines.zeroshot_config import ZeroShotConfig
 from rllib_conv.training.experiment import ExperimentConfig
 
@@ -133,35 +137,47 @@ class Reproduction:
         labels = {m.label for m in methods}
         return [v for v in self.plan.adapt_variants if v.base.label in labels]
 
+    def training(self) -> list[dict[str, Any]]:
+        """Every experiment this plan trains: its methods on its populations, then the zero-shot ones not among them."""
+        experiments = [self.experiment(p, m) for p, m in self.trained()]
+        experiments += [self.experiment(p, m) for p in self.plan.zeroshot_populations for m in self.plan.zeroshot_methods]
+        return list({e["name"]: e for e in experiments}.values())
+
     def stage_train(self) -> None:
-        for population, method in self.trained():
-            results = run(config_files.from_dict(self.experiment(population, method), schema=ExperimentConfig), storage=self.runs, address=self.address)
-            if results.errors:
-                raise RuntimeError(f"training {Path(population).name} / {method.label}: {len(results.errors)} trial(s) failed")
+        raws = [config_files.from_dict(e, schema=ExperimentConfig) for e in self.training()]
+        train_stage(raws, storage=self.runs, address=self.address, label=f"[{self.plan.game}] train")
 
     def stage_adapt(self) -> None:
+        raws = []
         for population, methods in self.populations().items():
             pop = partners.get(population)
             names = [e.name for e in pop.entries("test")][: self.plan.adapt_partners]
-            jobs = [(self.experiment(population, m)["name"], {}) for m in methods]
+            jobs = [(self.experiment(population, m)["name"], {"runs": self.egos(self.experiment(population, m)["name"])}) for m in methods]
             for v in self.variants(methods):
-                jobs.append((experiment_name(population, v.label), {**v.settings, "runs": [str(self.runs / self.experiment(population, v.base)["name"])]}))
+                jobs.append((experiment_name(population, v.label), {**v.settings, "runs": self.egos(self.experiment(population, v.base)["name"])}))
             for name, extra in jobs:
-                if (self.root / ADAPTATION_DIR / f"{name}.csv").is_file():
+                if covers(self.root / ADAPTATION_DIR / f"{name}.csv", extra["runs"]):
                     continue
-                raw = _merge({"name": name, "runs": [str(self.runs / name)], "population": population, "partners": names}, {**self.plan.adapt_overrides, **extra})
-                run_adaptation(config_files.from_dict(raw, schema=AdaptConfig), out=self.root / ADAPTATION_DIR, storage=self.runs, address=self.address)
+                raw = _merge({"name": name, "population": population, "partners": names}, {**self.plan.adapt_overrides, **extra})
+                raws.append(config_files.from_dict(raw, schema=AdaptConfig))
+        if raws:
+            run_adaptations(raws, out=self.root / ADAPTATION_DIR, storage=self.runs, address=self.address, label=f"[{self.plan.game}] adapt")
+
+    def egos(self, experiment: str) -> list[str]:
+        """The trained egos of `experiment` with this plan's seeds (a folder may hold more, from a wider earlier plan)."""
+        seeds = set(self.plan.seeds)
+        return [str(t.resolve()) for t in trial_folders(self.runs / experiment) if read_trial_config(t).get("seed") in seeds]
 
     def stage_zeroshot(self) -> None:
+        raws = []
         for population in self.plan.zeroshot_populations:
             for method in self.plan.zeroshot_methods:
-                exp = self.experiment(population, method)
-                name = exp["name"]
-                if (self.root / ZEROSHOT_DIR / f"{name}.csv").is_file():
-                    continue
-                run(config_files.from_dict(exp, schema=ExperimentConfig), storage=self.runs, address=self.address)  # continues or skips if trained
-                raw = _merge({"name": name, "runs": [str(self.runs / name)]}, self.plan.zeroshot_overrides)
-                run_zeroshot(config_files.from_dict(raw, schema=ZeroShotConfig), out=self.root / ZEROSHOT_DIR, storage=self.runs, address=self.address)
+                name = self.experiment(population, method)["name"]
+                runs = self.egos(name)
+                if not covers(self.root / ZEROSHOT_DIR / f"{name}.csv", runs):
+                    raws.append(config_files.from_dict(_merge({"name": name, "runs": runs}, self.plan.zeroshot_overrides), schema=ZeroShotConfig))
+        if raws:
+            run_zeroshots(raws, out=self.root / ZEROSHOT_DIR, storage=self.runs, address=self.address, label=f"[{self.plan.game}] zeroshot")
 
     def has_marginals(self, experiment: str) -> bool:
         """Whether the marginals stage measures experiment `<population>__<label>` (see `Plan.no_marginals`)."""
@@ -169,11 +185,11 @@ class Reproduction:
 
     def stage_marginals(self) -> None:
         experiments = [e for e in sorted(self.runs.glob("*__*")) if self.has_marginals(e.name)]
-        # Finished trials only (their eval.json is written when training ends): another
+        # Finished egos only (their eval.json is written when training ends): another
         # process may be training an experiment in the same folder.
-        trials = [t.parent for exp in experiments for t in sorted(exp.glob(f"*/{EVAL_FILE}"))]
+        trials = [t for exp in experiments for t in trial_folders(exp) if (t / EVAL_FILE).is_file()]
         table = marginal_report(trials)
-        table["experiment"] = [Path(r).parent.name for r in table["run"]]
+        table["experiment"] = [experiment_of(r).name for r in table["run"]]
         table.to_csv(self.root / MARGINALS_FILE, index=False)
 
     def stages(self) -> list[tuple[str, Callable[[], None]]]:
@@ -218,7 +234,9 @@ class Reproduction:
             outputs = [self.root / MARGINALS_FILE]
         else:
             folder, prefix = REDO_OUTPUTS[stage]
-            outputs = [p for n in self.stage_experiments(stage) for p in (self.root / folder / f"{n}.csv", self.runs / f"{prefix}{n}")]
+            names = self.stage_experiments(stage)
+            outputs = [p for n in names for p in (self.root / folder / f"{n}.csv", self.runs / f"{prefix}{n}")]
+            outputs += stage_runs(self.runs, f"{prefix}stage-", names)
         dest = self.root / SUPERSEDED_DIR / time.strftime("%Y%m%d-%H%M%S")
         moved = []
         for path in outputs:
@@ -239,7 +257,7 @@ class Reproduction:
         zeroshot = [self.experiment(p, m)["name"] for p in self.plan.zeroshot_populations for m in self.plan.zeroshot_methods]
         return {
             "selfplay": [sp["name"] for sp in self.plan.selfplay],
-            "train": trained,
+            "train": [e["name"] for e in self.training()],
             "adapt": [*trained, *(experiment_name(p, v.label) for p, ms in self.populations().items() for v in self.variants(ms))],
             "zeroshot": zeroshot,
             "marginals": sorted(n for n in {*trained, *zeroshot} if self.has_marginals(n)),
@@ -253,9 +271,28 @@ class Reproduction:
         """
         seeds = f" seeds={','.join(map(str, self.plan.seeds))}"
         if stage == "train":
-            experiments = [self.experiment(p, m) for p, m in self.trained()]
-            return [f"{e['name']}{seeds} steps={self.train_steps(e)}" for e in experiments]
+            return [f"{e['name']}{seeds} steps={self.train_steps(e)}" for e in self.training()]
         return [name + seeds for name in self.stage_experiments(stage)]
+
+
+def covers(csv: Path, runs: list[str]) -> bool:
+    """Whether a stage's CSV holds rows of every one of `runs` (then that experiment is done for this plan)."""
+    if not csv.is_file():
+        return False
+    try:
+        return set(runs) <= set(pd.read_csv(csv, usecols=["run"])["run"])
+    except (pd.errors.EmptyDataError, ValueError):
+        return False
+
+
+def stage_runs(runs: Path, prefix: str, experiments: list[str]) -> list[Path]:
+    """The stage Tune runs `runs/<prefix><hash>/` that ran any of `experiments` (their spec lists them)."""
+    found = []
+    for folder in sorted(runs.glob(f"{prefix}*")):
+        spec = config_files.read_yaml(folder / SPEC_FILE) if (folder / SPEC_FILE).is_file() else {}
+        if set(spec.get("experiments", [])) & set(experiments):
+            found.append(folder)
+    return found
 
 
 def reproduce(

@@ -39,7 +39,7 @@ from rllib_conv.common.run_folders import (
     SELFPLAY_TRIAL_FILE,
 )
 from rllib_conv.common.sealed import seal, verify
-from rllib_conv.envs.rllib_adapter import PettingZooMultiAgentEnv
+from rllib_conv.envs.rllib_adapter import PettingZooMultiAgentEnv, RLlibGame, game_env_config
 from rllib_conv.learners.marginal_learner import MarginalPPOLearner
 from rllib_conv.learners.settings import LearnerSettings
 from rllib_conv.modules.task_module import TaskModule
@@ -48,6 +48,7 @@ from rllib_conv.partners.population import PartnerEntry, Population
 from rllib_conv.partners.trained import PolicyPartner
 from rllib_conv.pipelines.selfplay_config import SelfPlayConfig
 from rllib_conv.training.algorithm import base_ppo_config
+from rllib_conv.training.callbacks import STEPS_DONE, STEPS_TOTAL
 from rllib_conv.training.trainable import AlgorithmTrainable
 from rllib_conv.training.tuning import fit
 
@@ -89,7 +90,7 @@ def build_selfplay_config(cfg: SelfPlayConfig) -> PPOConfig:
         for a in game_agents(cfg)
     }
     return (
-        base_ppo_config(cfg.env, cfg.env_config, cfg.ppo, cfg.run, cfg.seed + cfg.pair, cfg.ppo.rollout_per_partner)
+        base_ppo_config(RLlibGame, game_env_config(cfg.env, cfg.env_config), cfg.ppo, cfg.run, cfg.seed + cfg.pair, cfg.ppo.rollout_per_partner)
         # A list, not a set: see build_ppo_config.
         .multi_agent(policies=list(specs), policy_mapping_fn=SeatMapping(cfg.shared_seats), policies_to_train=list(specs))
         .rl_module(rl_module_spec=MultiRLModuleSpec(rl_module_specs=specs))
@@ -113,20 +114,25 @@ def selfplay_score(module: Any, cfg: SelfPlayConfig, episodes: int, seed: int) -
 class SelfPlayTrainable(AlgorithmTrainable):
     """One self-play pair: trains until it passes the score gate or its step budget runs out."""
 
-    def setup(self, config: dict[str, Any]) -> None:
-        super().setup(config)
+    def build(self, config: dict[str, Any]) -> None:
         self.cfg = SelfPlayConfig.model_validate(config).resolve()
         self.algo = build_selfplay_config(self.cfg).build_algo()
         self.passed, self.score, self.steps_to_gate = False, math.nan, None
         self._start = time.perf_counter()
 
-    def step(self) -> dict[str, Any]:
+    def advance(self) -> dict[str, Any]:
         cfg, gate = self.cfg, self.cfg.gate
-        result = self.algo.train()
+        with self.timings.measure("iterate"):
+            result = self.algo.train()
         runners = result.get("env_runners", {})
         steps = int(runners.get("num_env_steps_sampled_lifetime", 0))
         first = cfg.partner_agent  # shared rewards: any seat's return is the team's
-        out = {"env_steps": steps, "train_return": float(runners.get("agent_episode_returns_mean", {}).get(first, math.nan))}
+        out = {
+            "env_steps": steps,
+            "train_return": float(runners.get("agent_episode_returns_mean", {}).get(first, math.nan)),
+            STEPS_DONE: min(steps, cfg.run.timesteps),
+            STEPS_TOTAL: cfg.run.timesteps,
+        }
         budget_spent = steps >= cfg.run.timesteps
         module = self.algo.env_runner.module
         iteration = self.iteration + 1
@@ -148,7 +154,7 @@ class SelfPlayTrainable(AlgorithmTrainable):
                 "env_steps": steps,
                 "wall_s": time.perf_counter() - self._start,
             }
-            Path(self.logdir, SELFPLAY_TRIAL_FILE).write_text(json.dumps(report, indent=2) + "\n")
+            (self.trial_folder / SELFPLAY_TRIAL_FILE).write_text(json.dumps(report, indent=2) + "\n")
             out.update({k: v for k, v in report.items() if k not in out})
         return out
 

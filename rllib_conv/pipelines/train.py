@@ -1,51 +1,65 @@
 """Train the modular ego through Ray Tune: one experiment config (grids allowed) -> one Tune run.
 
-Each trial is an `EgoTrainable` wrapping an RLlib PPO algorithm built from the trial's
-`ExperimentConfig`. The trial folder holds Tune's `params.json`/`progress.csv`
-(per-iteration metrics, per-partner returns included), our resolved `config.yaml`,
-checkpoints, and `eval.json` (final per-partner returns and marginal distances).
+Each trial is an `EgoTrainable` wrapping one RLlib PPO algorithm. The seeds of a trial's
+grid point train together in it as replicas (`rllib_conv.training.algorithm.Replica`):
+one game copy and one set of modules per seed, each seeded from its seed alone, so every
+seed trains as it would alone while the env runner and learner costs are paid once.
+
+The Tune trial folder holds Tune's `params.json`/`progress.csv` (per-iteration metrics:
+the replicas' mean, and each replica's under `seed=<s>/...`) and its checkpoints (the whole
+algorithm, for resuming). When training ends each replica is written as an ordinary
+trained-ego folder `<trial>/seed=<s>/` (`replica_export`): `config.yaml`, `progress.csv`,
+a sealed checkpoint of its modules and, last, `eval.json` (final per-partner returns and
+marginal distances).
 """
 
 from __future__ import annotations
 
 import json
 import math
-import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 from ray import tune
+from ray.tune.search.variant_generator import generate_variants
 
+from rllib_conv.common.config_files import GRID_KEY, is_grid
 from rllib_conv.common.methods import method
-from rllib_conv.common.run_folders import CONFIG_FILE, EVAL_FILE
+from rllib_conv.common.run_folders import EVAL_FILE, REPLICA_PREFIX, TRAIN_STAGE_PREFIX, replica_folder
 from rllib_conv.envs.oracles import has_oracle
 from rllib_conv.learners.marginal_learner import HEAD_L2_KEY, MARGINAL_REG_KEY
-from rllib_conv.modules.multi import AGG_HEAD_ID, partner_id
-from rllib_conv.training.algorithm import build_ppo_config
+from rllib_conv.modules.multi import AGG_HEAD_ID, TASK_ID, partner_id, replica_id
+from rllib_conv.training.algorithm import Replica, build_algorithm
+from rllib_conv.training.callbacks import STEPS_DONE, STEPS_TOTAL, StageProgress
 from rllib_conv.training.ego_setup import EgoSetup, resolve
 from rllib_conv.training.evaluate import ego_return
 from rllib_conv.training.experiment import ExperimentConfig, validate
 from rllib_conv.training.maml import MetaTrainer
 from rllib_conv.training.marginals import marginal_distances, marginal_states
+from rllib_conv.training.replica_export import export_replica, replica_module
+from rllib_conv.training.replica_steps import is_parallel, replica_env_steps
 from rllib_conv.training.trainable import AlgorithmTrainable
-from rllib_conv.training.tuning import fit, to_param_space
+from rllib_conv.training.tuning import check_spec, fit, job_param_space, spec_name, to_param_space
+from rllib_conv.training.weights import learner_module
+
+REPLICA_SEEDS = "replica_seeds"  # a trial config's seeds, trained together as replicas
+EXPORT_KEY = "export_to"  # a stage job's folder for its replicas (default: its Tune trial folder)
+HISTORY_FILE = "replica_history.json"  # in a trial checkpoint: every replica's progress rows so far
 
 
-def summarize(result: dict[str, Any], setup: EgoSetup) -> dict[str, Any]:
-    """Reduce RLlib's result dict to the metrics we report: steps, per-partner returns, regulariser."""
-    runners = result.get("env_runners", {})
-    module_returns = runners.get("module_episode_returns_mean", {})
+def summarize(result: dict[str, Any], setup: EgoSetup, replica: int, parallel: bool) -> dict[str, Any]:
+    """Replica `replica`'s part of RLlib's result dict: its env steps, per-partner returns, regulariser, head size."""
+    module_returns = result.get("env_runners", {}).get("module_episode_returns_mean", {})
     per_partner = {
-        f"return/{e.name}": float(module_returns[partner_id(e.name)]) for e in setup.train if partner_id(e.name) in module_returns
+        f"return/{e.name}": float(module_returns[mid]) for e in setup.train if (mid := replica_id(partner_id(e.name), replica)) in module_returns
     }
-    learners = result.get("learners", {})
+    learners = result.get("learners", {}).get(replica_id(TASK_ID, replica), {})
     return {
-        "env_steps": int(runners.get("num_env_steps_sampled_lifetime", 0)),
+        "env_steps": replica_env_steps(result, setup, replica, parallel),
         "return_mean": float(np.mean(list(per_partner.values()))) if per_partner else math.nan,
         **per_partner,
-        **{key: float(learners.get("__all_modules__", {}).get(key, math.nan)) for key in (MARGINAL_REG_KEY, HEAD_L2_KEY)},
+        **{key: float(learners.get(key, math.nan)) for key in (MARGINAL_REG_KEY, HEAD_L2_KEY)},
     }
 
 
@@ -67,33 +81,81 @@ def evaluate(module: Any, setup: EgoSetup, episodes: int, seed: int = 0) -> dict
 
 
 class EgoTrainable(AlgorithmTrainable):
-    """One ego-training trial: builds the PPO algorithm, trains it, checkpoints and evaluates it."""
+    """One ego-training trial: its seeds (replicas) train in one PPO algorithm, are evaluated and exported when done."""
 
-    def setup(self, config: dict[str, Any]) -> None:
-        begin = time.perf_counter()
-        super().setup(config)
-        self.ego = resolve(ExperimentConfig.model_validate(config))
-        self.algo = build_ppo_config(self.ego).build_algo()
-        maml = self.ego.exp.maml
+    def outputs_complete(self, config: dict[str, Any]) -> bool:
+        return _finished({EXPORT_KEY: config.get(EXPORT_KEY) or self.trial_folder, REPLICA_SEEDS: config.get(REPLICA_SEEDS) or [config.get("seed", 0)]})
+
+    def build(self, config: dict[str, Any]) -> None:
+        config = dict(config)
+        self.export = Path(config.pop(EXPORT_KEY, None) or self.trial_folder)
+        exp = ExperimentConfig.model_validate({k: v for k, v in config.items() if k != REPLICA_SEEDS})
+        seeds = list(config.get(REPLICA_SEEDS) or [exp.seed])
+        self.replicas = [Replica(resolve(exp.model_copy(update={"seed": s}))) for s in seeds]
+        self.algo = build_algorithm(self.replicas)
+        maml = exp.maml
         self.meta = (
-            MetaTrainer(self.algo, [e.name for e in self.ego.train], maml.inner_iterations, maml.outer_step)
-            if method(self.ego.exp.method).meta_learned
+            MetaTrainer(self.algo, [e.name for e in self.replicas[0].setup.train], maml.inner_iterations, maml.outer_step)
+            if method(exp.method).meta_learned
             else None
         )
-        Path(self.logdir, CONFIG_FILE).write_text(yaml.safe_dump(self.ego.exp.model_dump(), sort_keys=False))
-        self._start = time.perf_counter()
-        self._setup_s = self._start - begin
+        self.parallel = is_parallel(self.algo)
+        self.history: list[list[dict[str, Any]]] = [[] for _ in seeds]
 
-    def step(self) -> dict[str, Any]:
-        metrics = summarize(self.meta.step() if self.meta else self.algo.train(), self.ego)
-        metrics["done"] = metrics["env_steps"] >= self.ego.exp.run.timesteps
+    def advance(self) -> dict[str, Any]:
+        with self.timings.measure("iterate"):
+            result = self.meta.step() if self.meta else self.algo.train()
+        rows = [summarize(result, rep.setup, r, self.parallel) for r, rep in enumerate(self.replicas)]
+        for history, row in zip(self.history, rows):
+            history.append({"training_iteration": self.iteration + 1, **row})
+        metrics = {key: float(np.mean([row[key] for row in rows])) for key in rows[0]}
+        metrics["env_steps"] = min(row["env_steps"] for row in rows)
+        for rep, row in zip(self.replicas, rows):
+            metrics.update({f"{REPLICA_PREFIX}{rep.own_seed}/{k}": v for k, v in row.items()})
+        budget = self.replicas[0].setup.exp.run.timesteps
+        metrics["done"] = metrics["env_steps"] >= budget
+        metrics[STEPS_DONE] = sum(min(row["env_steps"], budget) for row in rows)
+        metrics[STEPS_TOTAL] = budget * len(rows)
         if metrics["done"]:
-            final = evaluate(self.algo.env_runner.module, self.ego, self.ego.exp.run.eval_episodes, self.ego.exp.seed)
-            final["wall_s"] = time.perf_counter() - self._start  # training and evaluation, after setup
-            final["setup_s"] = self._setup_s
-            Path(self.logdir, EVAL_FILE).write_text(json.dumps(final, indent=2) + "\n")
-            metrics.update(final)
+            with self.timings.measure("evaluate"):
+                metrics.update(self._finish())
         return metrics
+
+    def _finish(self) -> dict[str, float]:
+        """Evaluate every replica and export it as a trained-ego folder `<trial>/seed=<s>/`; return the evaluations
+        (each replica's under `seed=<s>/`, their mean under the plain keys)."""
+        module = learner_module(self.algo)
+        timing = {"wall_s": self.timings.seconds["iterate"], "setup_s": self.timings.seconds["setup"]}  # training, before the evaluations
+        evaluations = []
+        for r, rep in enumerate(self.replicas):
+            plain = replica_module(module, r, rep)
+            final = evaluate(plain, rep.setup, rep.setup.exp.run.eval_episodes, rep.own_seed)
+            evaluations.append(final)
+            final = {**final, **timing, "replicas": len(self.replicas)}
+            export_replica(plain, rep, replica_folder(self.export, rep.own_seed), final, self.history[r])
+        out = {key: float(np.mean([e[key] for e in evaluations])) for key in evaluations[0]}
+        for rep, e in zip(self.replicas, evaluations):
+            out.update({f"{REPLICA_PREFIX}{rep.own_seed}/{k}": v for k, v in e.items()})
+        return out
+
+    def save_extra(self, checkpoint_dir: Path) -> None:
+        (checkpoint_dir / HISTORY_FILE).write_text(json.dumps(self.history))
+
+    def load_extra(self, checkpoint_dir: Path) -> None:
+        path = checkpoint_dir / HISTORY_FILE
+        if path.is_file():
+            self.history = json.loads(path.read_text())
+
+
+def replica_param_space(raw: dict[str, Any]) -> dict[str, Any]:
+    """The Tune param space of an experiment: its grids, except that its seeds become one trial's replicas.
+
+    `seed: {grid_search: [0, 1, 2]}` (or a single seed) trains as one trial per point of the
+    other grids, with `replica_seeds: [0, 1, 2]`.
+    """
+    seed = raw.get("seed", 0)
+    seeds = seed[GRID_KEY] if is_grid(seed) else [seed]
+    return to_param_space({**{k: v for k, v in raw.items() if k != "seed"}, "seed": seeds[0], REPLICA_SEEDS: list(seeds)})
 
 
 def run(
@@ -104,9 +166,62 @@ def run(
     Results go to `storage/<name>/`, with the experiment's config in `experiment.yaml`;
     running the same experiment again continues it (see `tuning.fit` for `progress` and `resume`).
     """
+    first = _checked(raw)[0]
+    return fit(EgoTrainable, raw, replica_param_space(raw), first.name, storage, address, _checkpoints(first), progress, resume)
+
+
+def _checked(raw: dict[str, Any]) -> list[ExperimentConfig]:
+    """The experiment's variants, each resolved: unknown population, wrong seat, bad env config fail before anything is written."""
     variants = validate(raw)
     for exp in variants:
-        resolve(exp)  # unknown population, wrong seat, bad env config: fail before anything is written
-    first = variants[0]
-    checkpoint = tune.CheckpointConfig(num_to_keep=first.run.keep_checkpoints, checkpoint_frequency=first.run.checkpoint_every, checkpoint_at_end=True)
-    return fit(EgoTrainable, raw, to_param_space(raw), first.name, storage, address, checkpoint, progress, resume)
+        resolve(exp)
+    return variants
+
+
+def _checkpoints(exp: ExperimentConfig) -> tune.CheckpointConfig:
+    return tune.CheckpointConfig(num_to_keep=exp.run.keep_checkpoints, checkpoint_frequency=exp.run.checkpoint_every, checkpoint_at_end=True)
+
+
+def training_jobs(raw: dict[str, Any], folder: Path) -> list[dict[str, Any]]:
+    """The trials of experiment `raw` as stage jobs: one per point of its grids (its seeds as replicas),
+    exporting its egos to `folder/point_<i>/seed=<s>/`."""
+    points = [spec for _, spec in generate_variants(replica_param_space(raw))]
+    return [{**point, EXPORT_KEY: str(folder / f"point_{i}")} for i, point in enumerate(points)]
+
+
+def _finished(job: dict[str, Any]) -> bool:
+    return all((replica_folder(Path(job[EXPORT_KEY]), s) / EVAL_FILE).is_file() for s in job[REPLICA_SEEDS])
+
+
+def _unfinished(job: dict[str, Any]) -> dict[str, Any] | None:
+    """`job` narrowed to its seeds not trained yet (None when all are): more seeds than an earlier run train only the new ones."""
+    seeds = [s for s in job[REPLICA_SEEDS] if not (replica_folder(Path(job[EXPORT_KEY]), s) / EVAL_FILE).is_file()]
+    return {**job, "seed": seeds[0], REPLICA_SEEDS: seeds} if seeds else None
+
+
+def train_stage(raws: list[dict[str, Any]], storage: str | Path, address: str | None = None, label: str = "train") -> list[str]:
+    """Train every experiment of `raws` in one Tune run (its trials spread over the cluster); return the experiments trained now.
+
+    Each experiment's egos land where `run` puts them, `storage/<name>/<point>/seed=<s>/`,
+    with its config in `storage/<name>/experiment.yaml` (a different experiment there is an
+    error). Egos already trained are skipped (an experiment with more seeds than an earlier
+    run trains the new seeds only). The Tune run itself is
+    `storage/train-stage-<hash>/`, named after every job of `raws`: run again after an
+    interruption it continues (finished trials kept, interrupted ones from their checkpoints).
+    """
+    storage = Path(storage).resolve()
+    jobs, names, first = [], [], None
+    for raw in raws:
+        exp = _checked(raw)[0]
+        first = first or exp
+        check_spec(storage / exp.name, raw)
+        names.append(exp.name)
+        jobs += training_jobs(raw, storage / exp.name)
+    todo = [left for job in jobs if (left := _unfinished(job))]
+    if not todo:
+        return []
+    name = spec_name(TRAIN_STAGE_PREFIX, {"experiments": names, "jobs": jobs})
+    results = fit(EgoTrainable, {"experiments": names, "jobs": jobs}, job_param_space(todo), name, storage, address, _checkpoints(first), StageProgress(label))
+    if results.errors:
+        raise RuntimeError(f"{len(results.errors)} training trial(s) failed; see {storage / name}")
+    return sorted({Path(job[EXPORT_KEY]).parent.name for job in todo})

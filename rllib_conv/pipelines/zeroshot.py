@@ -1,10 +1,14 @@
-"""Zero-shot coordination on a new task with known partners: the paper's three steps, one Tune trial per run.
+"""Zero-shot coordination on a new task with known partners: the paper's three steps, trained egos in packs.
 
 1. Heads for the test partners, on the old task, task module frozen.
 2. The task module re-trained on the new task, paired with the training partners' heads
    (frozen) and the run's regulariser weight.
 3. The new task module composed with the test partners' heads from step 1, evaluated on
    the new task with the test partners (who keep their conventions), without training.
+
+Egos run the steps in packs, as replicas of one algorithm (`packs`), one Tune trial a pack;
+several zero-shot configs (a `reproduce` stage) run as one Tune run. A pack writes its rows
+(`zeroshot.csv` in its trial folder) when it finishes.
 
 Output: one row per (run, test partner): zero-shot mean return, its standard error and,
 on the bandit, the exact expected return.
@@ -17,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 import pandas as pd
+import torch
 from ray import tune
 
 from rllib_conv import partners
@@ -24,24 +29,32 @@ from rllib_conv.common import methods
 from rllib_conv.common.config_files import validate
 from rllib_conv.common.run_folders import RL_MODULE_DIR, ZEROSHOT_PREFIX, trial_folders
 from rllib_conv.envs.defaults import ZEROSHOT_DEFAULTS
-from rllib_conv.modules.mlp import mlp
+from rllib_conv.learners.minibatches import module_seed
+from rllib_conv.modules.ego_stack import TASK_LOGITS_LAYER
+from rllib_conv.modules.mlp import mlp, seeded_generator
 from rllib_conv.modules.multi import TASK_ID, ego_id
+from rllib_conv.modules.stacked_multi import STACK_ID
 from rllib_conv.pipelines.zeroshot_config import ZeroShotConfig
-from rllib_conv.training.algorithm import build_ppo_config
+from rllib_conv.training.algorithm import Replica, build_algorithm, packing_key
+from rllib_conv.training.callbacks import STEPS_DONE, STEPS_TOTAL, StageProgress
 from rllib_conv.training.checkpoints import last_checkpoint
 from rllib_conv.training.ego_setup import setup_for
 from rllib_conv.training.evaluate import ego_return
 from rllib_conv.training.experiment import ExperimentConfig, trial_config
+from rllib_conv.training.packs import cluster_cpus, packs, write_tables
+from rllib_conv.training.replica_export import replica_module
+from rllib_conv.training.replica_steps import is_parallel, replica_env_steps
 from rllib_conv.training.trainable import AlgorithmTrainable
-from rllib_conv.training.tuning import fit
-from rllib_conv.training.weights import push_learner_weights
+from rllib_conv.training.tuning import fit, job_param_space, spec_name
+from rllib_conv.training.weights import learner_module, push_learner_weights
 
 RESULT_COLUMNS = ["run", "method", "lam", "seed", "partner", "mean_return", "stderr", "exact_return"]
+RESULTS_FILE = "zeroshot.csv"  # a finished pack's rows, in its trial folder
 
 
-def zeroshot_plan(cfg: ZeroShotConfig) -> dict[str, Any]:
-    """Check the run can be composed and gather what the three steps need."""
-    trial = Path(cfg.run)
+def zeroshot_plan(cfg: ZeroShotConfig, run: str | Path) -> dict[str, Any]:
+    """Check the trained ego in folder `run` can be composed and gather what the three steps need."""
+    trial = Path(run)
     trained = trial_config(trial)
     composable = tuple(methods.names(composable=True))
     if trained.method not in composable:
@@ -93,87 +106,132 @@ def step_experiments(trained: ExperimentConfig, cfg: ZeroShotConfig) -> dict[str
 
 
 class ZeroShotTrainable(AlgorithmTrainable):
-    """The three zero-shot steps for one trained ego; one RLlib iteration per Tune step."""
+    """The three zero-shot steps for a pack of trained egos (replicas of one algorithm); one RLlib iteration per Tune step.
 
-    def setup(self, config: dict[str, Any]) -> None:
-        super().setup(config)
-        self.cfg = ZeroShotConfig.model_validate(config)
-        self.plan = zeroshot_plan(self.cfg)
-        old, ckpt = self.plan["old"], self.plan["checkpoint"]
-        self.heads_setup = setup_for(self.plan["heads"], old, old.entries("test"))
-        self.algo = build_ppo_config(self.heads_setup, {TASK_ID: str(ckpt / TASK_ID)}).build_algo()
-        self.phase, self.phase_steps, self.composed = 1, 0, None
+    Its config is a job (`job_param_space`): `config`, the zero-shot config, and `runs`,
+    the trained-ego folders of the pack.
+    """
+
+    def outputs_complete(self, config: dict[str, Any]) -> bool:
+        return (self.trial_folder / RESULTS_FILE).is_file()
+
+    def build(self, config: dict[str, Any]) -> None:
+        job = config
+        self.cfg = ZeroShotConfig.model_validate(job["config"])
+        self.runs = list(job["runs"])
+        self.plans = [zeroshot_plan(self.cfg, run) for run in self.runs]
+        self.head_replicas = [
+            Replica(setup_for(p["heads"], p["old"], p["old"].entries("test")), {TASK_ID: str(p["checkpoint"] / TASK_ID)}) for p in self.plans
+        ]
+        self.algo = build_algorithm(self.head_replicas)
+        self.phase, self.composed = 1, []
 
     def _start_task_phase(self) -> None:
-        new, ckpt = self.plan["new"], self.plan["checkpoint"]
-        self.composed = self.algo.env_runner.module  # test heads (and the old task module, replaced below)
+        module = learner_module(self.algo)
+        # Test heads (and the old task module, replaced at evaluation) of each ego, as plain modules.
+        self.composed = [replica_module(module, r, rep) for r, rep in enumerate(self.head_replicas)]
         self.algo.stop()
-        self.task_setup = setup_for(self.plan["task"], new, new.entries("train"))
-        load = {TASK_ID: str(ckpt / TASK_ID), **{ego_id(e.name): str(ckpt / ego_id(e.name)) for e in new.entries("train")}}
-        self.algo = build_ppo_config(self.task_setup, load).build_algo()
+        self.task_replicas = []
+        for p in self.plans:
+            new, ckpt = p["new"], p["checkpoint"]
+            load = {TASK_ID: str(ckpt / TASK_ID), **{ego_id(e.name): str(ckpt / ego_id(e.name)) for e in new.entries("train")}}
+            self.task_replicas.append(Replica(setup_for(p["task"], new, new.entries("train")), load))
+        self.algo = build_algorithm(self.task_replicas)
         if self.cfg.reset_task_logits:
             # Forget the old rules, keep the representation z the conventions are read from.
+            fresh = [reset_logits_state(learner_module(self.algo)[STACK_ID].task_state(r), rep.own_seed) for r, rep in enumerate(self.task_replicas)]
+
             def reset(learner: Any) -> None:
-                layer = learner.module[TASK_ID].pi_out
-                fresh = mlp([layer[0].in_features, layer[0].out_features], out_gain=0.01)
-                layer.load_state_dict(fresh.state_dict())
+                for r, state in enumerate(fresh):
+                    learner.module[STACK_ID].load_task(r, state)
 
             self.algo.learner_group.foreach_learner(reset)
             push_learner_weights(self.algo)
-        self.phase, self.phase_steps = 2, 0
+        self.phase = 2
 
-    def _evaluate(self) -> dict[str, Any]:
-        self.composed[TASK_ID].set_state(self.algo.env_runner.module[TASK_ID].get_state())
-        new, trained = self.plan["new"], self.plan["trained"]
-        out = {}
-        for entry in new.entries("test"):
-            r = ego_return(
-                self.composed, ego_id(entry.name), new.env, new.env_config, entry.build(), self.task_setup.ego_agent,
-                self.task_setup.partner_agent, self.cfg.episodes, self.cfg.seed,
-            )
-            out[f"zeroshot/{entry.name}"] = {"mean_return": r["mean"], "stderr": r["stderr"], "exact_return": r.get("exact", math.nan)}
-        return {"method": trained.method, "lam": trained.lam, "seed": trained.seed, **out}
+    def _evaluate(self) -> list[dict[str, Any]]:
+        """One row per (ego, test partner): the new task module with that partner's head from step 1, on the new task."""
+        stack, rows = learner_module(self.algo)[STACK_ID], []
+        for r, (run, plan, composed) in enumerate(zip(self.runs, self.plans, self.composed)):
+            composed[TASK_ID].load_state_dict(stack.task_state(r))
+            new, trained, setup = plan["new"], plan["trained"], self.task_replicas[r].setup
+            for entry in new.entries("test"):
+                score = ego_return(
+                    composed, ego_id(entry.name), new.env, new.env_config, entry.build(), setup.ego_agent, setup.partner_agent, self.cfg.episodes, self.cfg.seed,
+                )
+                rows.append(
+                    {"run": run, "method": trained.method, "lam": trained.lam, "seed": trained.seed, "partner": entry.name,
+                     "mean_return": score["mean"], "stderr": score["stderr"], "exact_return": score.get("exact", math.nan)}
+                )
+        return rows
 
-    def step(self) -> dict[str, Any]:
-        result = self.algo.train()
-        runners = result["env_runners"]
-        self.phase_steps = int(runners["num_env_steps_sampled_lifetime"])
-        returns = [v for k, v in runners.get("module_episode_returns_mean", {}).items() if k.startswith("partner@")]
-        out: dict[str, Any] = {"phase": self.phase, "env_steps": self.phase_steps, "return_mean": sum(returns) / len(returns) if returns else math.nan}
-        if self.phase == 1 and self.phase_steps >= self.plan["head_steps"]:
-            self._start_task_phase()
-        elif self.phase == 2 and self.phase_steps >= self.plan["task_steps"]:
-            out.update(self._evaluate())
+    def advance(self) -> dict[str, Any]:
+        with self.timings.measure("iterate"):
+            result = self.algo.train()
+        replicas = self.head_replicas if self.phase == 1 else self.task_replicas
+        parallel = is_parallel(self.algo)
+        steps = [replica_env_steps(result, rep.setup, r, parallel) for r, rep in enumerate(replicas)]
+        returns = [v for k, v in result["env_runners"].get("module_episode_returns_mean", {}).items() if k.startswith("partner@")]
+        head_steps, task_steps = self.plans[0]["head_steps"], self.plans[0]["task_steps"]
+        done_steps = sum(min(s, head_steps) for s in steps) if self.phase == 1 else len(steps) * head_steps + sum(min(s, task_steps) for s in steps)
+        out: dict[str, Any] = {
+            "phase": self.phase,
+            "env_steps": min(steps),
+            "return_mean": sum(returns) / len(returns) if returns else math.nan,
+            STEPS_DONE: done_steps,
+            STEPS_TOTAL: len(steps) * (head_steps + task_steps),
+        }
+        if self.phase == 1 and min(steps) >= head_steps:
+            with self.timings.measure("setup"):
+                self._start_task_phase()
+        elif self.phase == 2 and min(steps) >= task_steps:
+            with self.timings.measure("evaluate"):
+                self._write_results(self._evaluate())
             out["done"] = True
         return out
+
+    def _write_results(self, rows: list[dict[str, Any]]) -> None:
+        path = self.trial_folder / RESULTS_FILE
+        tmp = path.with_suffix(".tmp")
+        pd.DataFrame(rows, columns=RESULT_COLUMNS).to_csv(tmp, index=False)
+        tmp.replace(path)
+
+
+def reset_logits_state(task_state: dict[str, torch.Tensor], seed: int) -> dict[str, torch.Tensor]:
+    """A task module state with its task-logits layer re-initialised as a fresh module's (seeded from `seed`)."""
+    weight = task_state[f"{TASK_LOGITS_LAYER}.weight"]
+    fresh = mlp([weight.shape[1], weight.shape[0]], out_gain=0.01, generator=seeded_generator(module_seed(seed, "task_logits_reset")))
+    return {**task_state, f"{TASK_LOGITS_LAYER}.weight": fresh[0].weight.detach(), f"{TASK_LOGITS_LAYER}.bias": fresh[0].bias.detach()}
+
+
+def run_zeroshots(
+    raws: list[dict[str, Any]], out: str | Path = "zeroshot", storage: str | Path = "runs", address: str | None = None, label: str | None = None
+) -> dict[str, pd.DataFrame]:
+    """Run the three steps for every run of every zero-shot config in `raws`, in one Tune run; write and return each config's table by name.
+
+    One row per (run, test partner). One config runs as the Tune experiment `zeroshot-<name>`,
+    several as `zeroshot-stage-<hash>`; `label` names the stage in its progress line.
+    """
+    cfgs = [validate(raw, schema=ZeroShotConfig)[0] for raw in raws]
+    names = [c.name for c in cfgs]
+    if len(set(names)) < len(names):
+        raise ValueError(f"zero-shot configs must have different names; got {names}")
+    runs = [[str(t.resolve()) for run in cfg.runs for t in trial_folders(run)] for cfg in cfgs]
+    plans = {(i, run): zeroshot_plan(cfg, run) for i, (cfg, rs) in enumerate(zip(cfgs, runs)) for run in rs}  # not modular, no new-task partners: fail early
+    cpus = cluster_cpus(address)
+
+    def key(i: int) -> Any:
+        return lambda run: packing_key(setup_for(plans[(i, run)]["heads"], plans[(i, run)]["old"], plans[(i, run)]["old"].entries("test")))
+
+    total = sum(map(len, runs))
+    jobs = [{"index": i, "config": raw, "runs": pack} for i, (raw, cfg, rs) in enumerate(zip(raws, cfgs, runs)) for pack in packs(rs, key(i), cpus, cfg.max_pack, total)]
+    spec: Any = raws[0] if len(raws) == 1 else {"experiments": names, "configs": raws}
+    name = f"{ZEROSHOT_PREFIX}{cfgs[0].name}" if len(raws) == 1 else spec_name(f"{ZEROSHOT_PREFIX}stage-", spec)
+    progress = StageProgress(label) if label else "lines"
+    results = fit(ZeroShotTrainable, spec, job_param_space(jobs), name, storage, address, tune.CheckpointConfig(checkpoint_at_end=False), progress)
+    return write_tables(results, cfgs, RESULTS_FILE, RESULT_COLUMNS, ["run", "partner"], Path(out), "zero-shot")
 
 
 def run_zeroshot(raw: dict[str, Any], out: str | Path = "zeroshot", storage: str | Path = "runs", address: str | None = None) -> pd.DataFrame:
     """Run the three steps for every run in `raw`; write and return one row per (run, test partner)."""
-    cfg = validate(raw, schema=ZeroShotConfig)[0]
-    trials = [str(t.resolve()) for run in cfg.runs for t in trial_folders(run)]
-    for trial in trials:
-        zeroshot_plan(cfg.model_copy(update={"run": trial}))  # not modular, no new-task partners: fail early
-    results = fit(
-        ZeroShotTrainable,
-        raw,
-        {**raw, "run": tune.grid_search(trials)},
-        f"{ZEROSHOT_PREFIX}{cfg.name}",
-        storage,
-        address,
-        tune.CheckpointConfig(checkpoint_at_end=False),
-    )
-    rows = []
-    for r in results:
-        if r.error or not r.metrics:
-            continue
-        m = r.metrics
-        for key, value in m.items():
-            if key.startswith("zeroshot/"):
-                rows.append({"run": r.config["run"], "method": m["method"], "lam": m["lam"], "seed": m["seed"], "partner": key.split("/", 1)[1], **value})
-    table = pd.DataFrame(rows, columns=RESULT_COLUMNS)
-    Path(out).mkdir(parents=True, exist_ok=True)
-    table.to_csv(Path(out) / f"{cfg.name}.csv", index=False)
-    if results.errors:
-        raise RuntimeError(f"{len(results.errors)} zero-shot trial(s) failed; the others are in {Path(out) / (cfg.name + '.csv')}")
-    return table
+    return next(iter(run_zeroshots([raw], out, storage, address).values()))

@@ -38,4 +38,5 @@ class ZeroShotConfig(Strict):
     head_lam: NonNegativeFloat | None = None
     episodes: PositiveInt = 200
     seed: int = 0
-    run: str | None = None
+    # Egos run together as replicas of one algorithm (speed only: each runs as it would alone).
+    max_pack: PositiveInt = 32

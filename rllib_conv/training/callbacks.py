@@ -95,6 +95,79 @@ class ProgressTable(Callback):
         self._print(trials)
 
 
+# What every trial of a stage reports, for `StageProgress`: env steps played so far and to play in all
+# (summed over the trial's replicas or curves).
+STEPS_DONE = "stage_steps"
+STEPS_TOTAL = "stage_steps_total"
+
+
+def _count(n: float) -> str:
+    return f"{n / 1e6:.2f}M" if n >= 1e6 else f"{n / 1e3:.1f}k"
+
+
+def _duration(seconds: float) -> str:
+    seconds = int(round(seconds))
+    return f"{seconds // 3600}h{seconds % 3600 // 60:02d}m" if seconds >= 3600 else f"{seconds // 60}m{seconds % 60:02d}s"
+
+
+class StageProgress(Callback):
+    """One line for a whole stage, at most every `every` seconds and when a trial ends:
+    trials done / total, env steps played / to play, elapsed time and an ETA.
+
+    `log` prints the line (default `print`). Steps come from each trial's latest result
+    (`STEPS_DONE`, `STEPS_TOTAL`; a resumed run knows its trials' last results); a trial
+    not yet started counts as the mean known total. The ETA extrapolates this run's step
+    rate: steps played before a resume do not count towards it.
+    """
+
+    def __init__(self, label: str, every: float = 30.0, log: Any = print) -> None:
+        self.label, self.every, self.log = label, every, log
+        self._start = time.monotonic()
+        self._last_print = self._start
+        self._latest: dict[str, dict[str, Any]] = {}
+        self._before: float | None = None
+
+    def _steps(self, trials: list) -> tuple[float, float]:
+        """Env steps played and to play over `trials` (unstarted trials at the mean known total)."""
+        done, totals = 0.0, []
+        for trial in trials:
+            result = self._latest.get(trial.trial_id) or getattr(trial, "last_result", None) or {}
+            if STEPS_DONE in result:
+                done += float(result[STEPS_DONE])
+                totals.append(float(result.get(STEPS_TOTAL, result[STEPS_DONE])))
+        mean = sum(totals) / len(totals) if totals else 0.0
+        return done, sum(totals) + (len(trials) - len(totals)) * mean
+
+    def line(self, trials: list) -> str:
+        """The progress line for `trials` now."""
+        finished = sum(t.status == "TERMINATED" for t in trials)
+        done, total = self._steps(trials)
+        elapsed = time.monotonic() - self._start
+        rate = (done - (self._before or 0.0)) / elapsed if elapsed > 0 else 0.0
+        if finished == len(trials):
+            eta = "0m00s"
+        else:
+            eta = _duration((total - done) / rate) if rate > 0 and total > done else "?"
+        return f"{self.label}: {finished}/{len(trials)} trials done, {_count(done)}/{_count(total)} env steps, {_duration(elapsed)} elapsed, ETA {eta}"
+
+    def _print(self, trials: list) -> None:
+        self._last_print = time.monotonic()
+        self.log(self.line(trials))
+
+    def on_trial_result(self, iteration: int, trials: list, trial: Any, result: dict[str, Any], **info: Any) -> None:
+        if self._before is None:  # what earlier runs played (restored trials' last results)
+            self._before = self._steps(trials)[0]
+        self._latest[trial.trial_id] = result
+        if time.monotonic() - self._last_print >= self.every:
+            self._print(trials)
+
+    def on_trial_complete(self, iteration: int, trials: list, trial: Any, **info: Any) -> None:
+        self._print(trials)
+
+    def on_trial_error(self, iteration: int, trials: list, trial: Any, **info: Any) -> None:
+        self._print(trials)
+
+
 PROGRESS = {"lines": ProgressLine, "table": ProgressTable}
 
 

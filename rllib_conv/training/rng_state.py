@@ -1,8 +1,9 @@
 """Random-number state that RLlib checkpoints leave out, so a resumed trial continues exactly.
 
 An RLlib checkpoint holds weights, optimizer and metrics, but not the games' RNGs, the
-global torch/numpy/random generators (action sampling, minibatch shuffling) nor the
-partner round robin. Saved beside each checkpoint and restored after it, they make a
+global torch/numpy/random generators, the replicas' own exploration generators (in the
+env runners' `EgoStack`), the learner's per-module shuffling generators nor the partner
+round robin. Saved beside each checkpoint and restored after it, they make a
 trial killed and resumed from its checkpoint produce the same results as one never
 interrupted, whenever no episode spans the checkpoint (as on the one-step bandit);
 otherwise the episodes in flight restart and the run continues with fresh ones.
@@ -18,6 +19,8 @@ from typing import Any
 import numpy as np
 import torch
 
+from rllib_conv.modules.stacked_multi import STACK_ID
+
 RNG_FILE = "rng_state.pkl"
 
 
@@ -31,6 +34,12 @@ def _set_process_state(state: dict[str, Any]) -> None:
     random.setstate(state["random"])
 
 
+def _samplers(runner: Any) -> list[torch.Generator]:
+    """The exploration generators of the runner's stacked ego (none for other modules)."""
+    module = runner.module
+    return list(module[STACK_ID].samplers) if module is not None and STACK_ID in module else []
+
+
 def _runner_state(runner: Any) -> dict[str, Any]:
     mapping = runner.config.policy_mapping_fn
     envs = runner.env.envs if runner.env is not None else []  # a driver-side runner may have no env
@@ -38,6 +47,7 @@ def _runner_state(runner: Any) -> dict[str, Any]:
         "process": _process_state(),
         "envs": [env.unwrapped.get_rng_state() for env in envs],
         "mapping": mapping.get_state() if hasattr(mapping, "get_state") else None,
+        "samplers": [g.get_state() for g in _samplers(runner)],
     }
 
 
@@ -48,6 +58,8 @@ def _set_runner_state(runner: Any, state: dict[str, Any]) -> None:
     mapping = runner.config.policy_mapping_fn
     if state["mapping"] is not None and hasattr(mapping, "set_state"):
         mapping.set_state(state["mapping"])
+    for generator, saved in zip(_samplers(runner), state.get("samplers", [])):
+        generator.set_state(saved)
 
 
 def capture(algo: Any) -> dict[str, Any]:
@@ -57,7 +69,8 @@ def capture(algo: Any) -> dict[str, Any]:
     if group.num_remote_env_runners():
         for result in group.foreach_env_runner(_runner_state, local_env_runner=False, return_actor_ids=True):
             runners[result.actor_id] = result.get()
-    return {"trainer": _process_state(), "runners": runners}
+    permuters = [r.get() for r in algo.learner_group.foreach_learner(_permuter_state)] if algo.learner_group.is_local else []
+    return {"trainer": _process_state(), "runners": runners, "learners": permuters}
 
 
 def restore(algo: Any, state: dict[str, Any]) -> None:
@@ -69,7 +82,19 @@ def restore(algo: Any, state: dict[str, Any]) -> None:
                 _set_runner_state(group.local_env_runner, runner_state)
         else:
             group.foreach_env_runner(lambda r, s=runner_state: _set_runner_state(r, s), remote_worker_ids=[index], local_env_runner=False)
+    for saved in state.get("learners", [])[:1]:
+        algo.learner_group.foreach_learner(lambda learner, s=saved: _set_permuter_state(learner, s))
     _set_process_state(state["trainer"])
+
+
+def _permuter_state(learner: Any) -> dict | None:
+    permuters = getattr(learner, "permuters", None)
+    return permuters.get_state() if permuters is not None else None
+
+
+def _set_permuter_state(learner: Any, state: dict | None) -> None:
+    if state is not None and getattr(learner, "permuters", None) is not None:
+        learner.permuters.set_state(state)
 
 
 def save(algo: Any, folder: str | Path) -> None:

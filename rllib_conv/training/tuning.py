@@ -7,6 +7,8 @@ checkpoint, errored ones are retried. Running the same command again therefore r
 
 from __future__ import annotations
 
+import hashlib
+import json
 import os
 from pathlib import Path
 from typing import Any
@@ -14,11 +16,15 @@ from typing import Any
 import ray
 import yaml
 from ray import tune
+from ray.tune import Callback
 from ray.tune.execution.placement_groups import PlacementGroupFactory
 
 from rllib_conv.common.config_files import GRID_KEY
 from rllib_conv.common.run_folders import SPEC_FILE
 from rllib_conv.training.callbacks import PROGRESS, TrimRerunResults
+
+# A stage's Tune run (`job_param_space`): every trial's config is one job under this key.
+JOB_KEY = "job"
 
 
 def init_ray(address: str | None = None) -> None:
@@ -53,6 +59,22 @@ def to_param_space(raw: Any) -> Any:
     return raw
 
 
+def job_param_space(jobs: list[dict[str, Any]]) -> dict[str, Any]:
+    """The param space of a Tune run whose trials are `jobs` (one config each), however different they are."""
+    return {JOB_KEY: tune.grid_search(list(jobs))}
+
+
+def trial_job(config: dict[str, Any]) -> dict[str, Any]:
+    """A trial's own config: its job in a `job_param_space` run, else the config itself."""
+    return config[JOB_KEY] if JOB_KEY in config else config
+
+
+def spec_name(prefix: str, spec: Any) -> str:
+    """A Tune experiment name for `spec` that only the same spec gets again: `<prefix><12 hex digits>`."""
+    digest = hashlib.sha1(json.dumps(spec, sort_keys=True, default=str).encode()).hexdigest()
+    return f"{prefix}{digest[:12]}"
+
+
 def check_spec(folder: Path, spec: dict[str, Any]) -> None:
     """Record `spec` in `folder`, or raise ValueError if the folder holds a different experiment."""
     path = folder / SPEC_FILE
@@ -78,17 +100,18 @@ def fit(
     storage: str | Path,
     address: str | None = None,
     checkpoint: tune.CheckpointConfig | None = None,
-    progress: str = "lines",
+    progress: str | Callback = "lines",
     resume: bool = False,
 ) -> tune.ResultGrid:
     """Run the Tune experiment `storage/name` described by `spec` and return its results.
 
     If that folder already holds the same experiment (an earlier, possibly interrupted run),
     it is continued instead of started over; a different experiment there is an error, and
-    so is `resume=True` with nothing to continue. `progress`: "lines" (one per result) or
-    "table" (a table of all trials, see `ProgressTable`).
+    so is `resume=True` with nothing to continue. `progress`: "lines" (one per result),
+    "table" (a table of all trials, see `ProgressTable`) or a Tune callback of its own
+    (`StageProgress`).
     """
-    if progress not in PROGRESS:
+    if not isinstance(progress, Callback) and progress not in PROGRESS:
         raise ValueError(f"progress must be one of {sorted(PROGRESS)}, got {progress!r}")
     path = Path(storage).resolve() / name
     restorable = tune.Tuner.can_restore(str(path))
@@ -96,7 +119,7 @@ def fit(
         raise ValueError(f"nothing to resume: {str(path)!r} holds no Tune experiment (run without --resume to start it)")
     check_spec(path, spec)
     init_ray(address)
-    callbacks = [TrimRerunResults(), PROGRESS[progress]()]
+    callbacks = [TrimRerunResults(), progress if isinstance(progress, Callback) else PROGRESS[progress]()]
     if restorable:
         tuner = tune.Tuner.restore(str(path), trainable=trainable, param_space=param_space, resume_unfinished=True, resume_errored=True)
         # tuner.pkl holds the first run's callbacks; this run's progress choice (and fixes) win.

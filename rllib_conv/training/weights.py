@@ -30,3 +30,11 @@ def push_learner_weights(algo: Any) -> None:
     # weights changed outside an update (MAML's outer step, a reset layer) keep the old one.
     module_state = {COMPONENT_RL_MODULE: state[COMPONENT_LEARNER][COMPONENT_RL_MODULE]}
     algo.env_runner_group.sync_env_runner_states(config=algo.config, rl_module_state=module_state)
+
+
+def learner_module(algo: Any) -> Any:
+    """The learner's MultiRLModule of an algorithm with a local learner (every module, value towers included)."""
+    learner = getattr(algo.learner_group, "_learner", None)
+    if learner is None:
+        raise RuntimeError("the algorithm has remote learners; its module is reachable through learner_group.foreach_learner only")
+    return learner.module

@@ -28,5 +28,5 @@ def test_a_population_of_an_import_path_game_trains_through_tune(ray_session, tm
     raw = {"name": "path", "population": str(tmp_path / "pop.json"), "model": {"hidden": 8}, "ppo": {"rollout_per_partner": 16}, "run": {"timesteps": 128}}
     results = run(raw, storage=tmp_path / "runs")
     assert not results.errors
-    evaluation = json.loads((tmp_path / "runs" / "path").glob("*/eval.json").__next__().read_text())
+    evaluation = json.loads((tmp_path / "runs" / "path").glob("*/seed=0/eval.json").__next__().read_text())
     assert 0.0 <= evaluation["eval/exact/hand-train-0"] <= 1.0

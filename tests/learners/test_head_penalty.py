@@ -7,7 +7,10 @@ import pytest
 import torch
 
 from rllib_conv.learners.marginal_learner import HEAD_L2_KEY, MARGINAL_REG_KEY, head_size
+from rllib_conv.modules.stacked_multi import STACK_ID
+from rllib_conv.training.algorithm import Replica
 from rllib_conv.training.experiment import ExperimentConfig
+from rllib_conv.training.replica_export import replica_module
 from tests.helpers import bandit_setup, build_learner, hand_batch
 
 
@@ -19,22 +22,25 @@ def test_head_size_by_hand() -> None:
 
 
 def test_head_penalty_in_the_learner_loss_is_weight_times_size_of_the_heads_own_outputs() -> None:
-    learner = build_learner(bandit_setup(lam=0.5, head_l2=0.2))
+    setup = bandit_setup(lam=0.5, head_l2=0.2)
+    learner = build_learner(setup)
     heads = learner.module.head_ids()
     batch = hand_batch(heads, seed=4)
     losses = learner.compute_losses(fwd_out=learner.module.forward_train(batch), batch=batch)
     assert set(losses) == set(heads) | {MARGINAL_REG_KEY, HEAD_L2_KEY}
     # By hand: every head's own output on every state of the minibatch, centred over actions.
     obs = torch.cat([batch[h]["obs"]["observations"] for h in heads])
+    plain = replica_module(learner.module, 0, Replica(setup))
     with torch.no_grad():
-        z = learner.module.task.policy(obs, None).z
-        outputs = np.stack([learner.module[h].pi(z).numpy() for h in heads])
+        z = plain.task.policy(obs, None).z
+        outputs = np.stack([plain[h].pi(z).numpy() for h in setup.head_ids])
     centred = outputs - outputs.mean(axis=-1, keepdims=True)
     assert losses[HEAD_L2_KEY].item() == pytest.approx(0.2 * (centred**2).sum(axis=-1).mean(), rel=1e-5)
     # Its gradient reaches the heads (and z), never the task module's logits layer.
     losses[HEAD_L2_KEY].backward()
-    assert learner.module[heads[0]].pi[0].weight.grad.abs().sum() > 0
-    assert learner.module.task.pi_out[0].weight.grad is None
+    stack = learner.module[STACK_ID]
+    assert stack.head_parameters()[0].grad.abs().sum() > 0 and stack.task_parameters(z_only=True)[0].grad.abs().sum() > 0
+    assert stack.task__pi_out_0__weight.grad is None
 
 
 def test_head_penalty_is_for_modular_heads_only() -> None:

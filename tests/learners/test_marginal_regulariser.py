@@ -8,8 +8,10 @@ import torch
 from ray.rllib.algorithms.ppo.torch.ppo_torch_learner import PPOTorchLearner
 
 from rllib_conv.learners.marginal_learner import MARGINAL_REG_KEY, marginal_distance
-from rllib_conv.modules.multi import TASK_ID
+from rllib_conv.modules.stacked_multi import STACK_ID
+from rllib_conv.training.algorithm import Replica
 from rllib_conv.training.evaluate import head_probs, task_probs
+from rllib_conv.training.replica_export import replica_module
 from tests.helpers import bandit_setup, build_learner, hand_batch
 
 
@@ -21,9 +23,12 @@ def test_marginal_distance_by_hand() -> None:
     task = torch.log(torch.tensor([[0.5, 0.25, 0.25], [1 / 3, 1 / 3, 1 / 3]]))
     h1 = torch.log(torch.tensor([[0.7, 0.2, 0.1], [0.2, 0.2, 0.6]]))
     h2 = torch.log(torch.tensor([[0.1, 0.6, 0.3], [0.6, 0.2, 0.2]]))
-    assert marginal_distance(task, [h1, h2]).item() == pytest.approx((0.30 + 4 / 15) / 2, abs=1e-6)
+    assert marginal_distance(task, torch.stack([h1, h2])).item() == pytest.approx((0.30 + 4 / 15) / 2, abs=1e-6)
     # The task module matching the mean policy exactly costs nothing.
-    assert marginal_distance(torch.log(torch.tensor([[0.4, 0.4, 0.2]])), [h1[:1], h2[:1]]).item() == pytest.approx(0.0, abs=1e-6)
+    assert marginal_distance(torch.log(torch.tensor([[0.4, 0.4, 0.2]])), torch.stack([h1[:1], h2[:1]])).item() == pytest.approx(0.0, abs=1e-6)
+    # Per replica ([K, ...] in, [K] out), padding rows left out: replica 1 is replica 0 with a padded row.
+    stacked = marginal_distance(torch.stack([task, task]), torch.stack([torch.stack([h1, h2])] * 2), torch.tensor([[True, True], [True, False]]))
+    assert stacked.tolist() == pytest.approx([(0.30 + 4 / 15) / 2, 0.30], abs=1e-6)
 
 
 def test_masked_actions_are_excluded_from_the_distance() -> None:
@@ -31,19 +36,21 @@ def test_masked_actions_are_excluded_from_the_distance() -> None:
     lowest = torch.finfo(torch.float32).min
     task = torch.tensor([[0.0, 0.0, lowest]])
     head = torch.tensor([[np.log(3.0), 0.0, lowest]])  # (0.75, 0.25, 0)
-    assert marginal_distance(task, [head]).item() == pytest.approx(0.5, abs=1e-6)
+    assert marginal_distance(task, head[None]).item() == pytest.approx(0.5, abs=1e-6)
 
 
 def test_regulariser_term_in_the_learner_loss_equals_lam_times_d() -> None:
-    learner = build_learner(bandit_setup(lam=0.5))
+    setup = bandit_setup(lam=0.5)
+    learner = build_learner(setup)
     heads = learner.module.head_ids()
     batch = hand_batch(heads)
     losses = learner.compute_losses(fwd_out=learner.module.forward_train(batch), batch=batch)
     assert set(losses) == set(heads) | {MARGINAL_REG_KEY}
-    # D by hand from the module's own distributions on the same states.
+    # D by hand from the ego's distributions on the same states, read from its plain modules.
+    plain = replica_module(learner.module, 0, Replica(setup))
     obs = np.concatenate([batch[h]["obs"]["observations"].numpy() for h in heads])
-    mean_policy = np.mean([head_probs(learner.module, h, obs) for h in heads], axis=0)
-    d = np.abs(task_probs(learner.module, obs) - mean_policy).sum(axis=1).mean()
+    mean_policy = np.mean([head_probs(plain, h, obs) for h in setup.head_ids], axis=0)
+    d = np.abs(task_probs(plain, obs) - mean_policy).sum(axis=1).mean()
     assert losses[MARGINAL_REG_KEY].item() == pytest.approx(0.5 * d, rel=1e-5)
 
 
@@ -65,10 +72,23 @@ def test_batched_train_forward_matches_each_heads_own_forward() -> None:
     heads = learner.module.head_ids()
     batch = hand_batch(heads, seed=5)
     batched = learner.module.forward_train(batch)
-    assert set(batched) == set(heads) | {TASK_ID}
+    assert set(batched) == set(heads) | {STACK_ID}
     for h in heads:
         single = learner.module[h].forward_train(batch[h])
         torch.testing.assert_close(batched[h]["action_dist_inputs"], single["action_dist_inputs"])
         torch.testing.assert_close(
             learner.module[h].compute_values(batch[h], batched[h]["embeddings"]), learner.module[h].compute_values(batch[h])
         )
+
+
+@pytest.mark.parametrize("overrides", [{"lam": 0.5}, {"method": "agg"}, {"method": "no_task_logits"}, {"method": "oracle"}, {"model": {"z_dim": 5}}])
+def test_the_stack_plays_as_its_plain_modules(overrides: dict) -> None:
+    """A replica's heads in the stack give the logits and values of the plain modules it exports, for every method."""
+    setup = bandit_setup(**overrides)
+    learner = build_learner(setup)
+    plain = replica_module(learner.module, 0, Replica(setup))
+    batch = hand_batch(learner.module.head_ids(), seed=2)
+    for view_id, plain_id in zip(learner.module.head_ids(), setup.head_ids):
+        obs = batch[view_id]["obs"]
+        torch.testing.assert_close(learner.module[view_id].forward_train(batch[view_id])["action_dist_inputs"], plain[plain_id].forward_train({"obs": obs})["action_dist_inputs"])
+        torch.testing.assert_close(learner.module[view_id].compute_values(batch[view_id]), plain[plain_id].compute_values({"obs": obs}))

@@ -1,103 +1,101 @@
-"""The shared task module's weights exist once, are stepped once per update, and freezing freezes."""
+"""The task module's weights exist once (in the stack), each part gets one optimizer step per minibatch, and freezing freezes."""
 
 from __future__ import annotations
 
 import pytest
 import torch
+from ray.rllib.policy.sample_batch import MultiAgentBatch, SampleBatch
 
-from rllib_conv.modules import TASK_ID, FixedPartnerModule, PartnerHeadModule
-from tests.helpers import bandit_setup, build_learner, hand_batch, params_of
+from rllib_conv.modules import FixedPartnerModule
+from rllib_conv.modules.stacked_multi import STACK_ID, HeadView
+from tests.helpers import bandit_setup, build_learner, hand_batch, head_weights, task_weights
 
 LR = 3e-4
 
 
 def optimizer_param_owners(learner) -> dict[int, list[str]]:
-    """id(parameter) -> the modules whose optimizers hold it."""
+    """id(parameter) -> the optimizers (by name) that hold it."""
     owners: dict[int, list[str]] = {}
-    for mid, names in learner._module_optimizers.items():
+    for names in learner._module_optimizers.values():
         for name in names:
             for group in learner._named_optimizers[name].param_groups:
                 for p in group["params"]:
-                    owners.setdefault(id(p), []).append(mid)
+                    owners.setdefault(id(p), []).append(name)
     return owners
+
+
+def one_update(learner, seed: int = 0) -> None:
+    """One PPO update (one epoch, one minibatch per head) of the learner's own loop on a hand-made batch."""
+    batch = hand_batch(learner.module.head_ids(), seed=seed)
+    mab = MultiAgentBatch({mid: SampleBatch(cols) for mid, cols in batch.items()}, env_steps=6 * len(batch))
+    learner.update(batch=mab, num_epochs=1, minibatch_size=6, timesteps={})
 
 
 def test_task_parameters_are_in_exactly_one_optimizer() -> None:
     learner = build_learner(bandit_setup(lam=0.5))
     owners = optimizer_param_owners(learner)
-    task_params = list(learner.module[TASK_ID].parameters())
-    assert task_params and all(owners[id(p)] == [TASK_ID] for p in task_params)
-    for mid in learner.module.head_ids():
-        head_params = list(learner.module[mid].parameters())
-        # A head's parameters are its own: the task module is referenced, not registered.
-        assert not {id(p) for p in head_params} & {id(p) for p in task_params}
-        assert all(owners[id(p)] == [mid] for p in head_params)
+    stack = learner.module[STACK_ID]
+    task, heads = stack.task_parameters(), stack.head_parameters()
+    assert task and heads and not {id(p) for p in task} & {id(p) for p in heads}
+    assert all(len(owners[id(p)]) == 1 for p in [*task, *heads])
+    assert {owners[id(p)][0] for p in task}.isdisjoint({owners[id(p)][0] for p in heads})
     for mid, module in learner.module._rl_modules.items():
-        if isinstance(module, FixedPartnerModule):
+        if isinstance(module, (HeadView, FixedPartnerModule)):  # views and fixed partners hold no weights of their own
             assert not learner._module_optimizers.get(mid) and not list(getattr(module, "parameters", list)())
-    assert all(len(mods) == 1 for mods in owners.values())
+    assert set(learner._module_optimizers) == {STACK_ID}
 
 
 def test_one_update_steps_the_task_module_once() -> None:
     learner = build_learner(bandit_setup(lam=0.5))
-    steps: dict[str, int] = {}
-    for mid, names in learner._module_optimizers.items():
-        for name in names:
-            opt = learner._named_optimizers[name]
-            original = opt.step
-
-            def counted(*args, _mid=mid, _orig=original, **kwargs):
-                steps[_mid] = steps.get(_mid, 0) + 1
-                return _orig(*args, **kwargs)
-
-            opt.step = counted
-    before = params_of(learner.module[TASK_ID])
-    learner._update(hand_batch(learner.module.head_ids()))
-    assert steps == {TASK_ID: 1, **{h: 1 for h in learner.module.head_ids()}}
+    before = task_weights(learner)
+    one_update(learner)
     # Adam's first step moves each parameter by at most lr (about lr where the gradient is
-    # not tiny); four steps, one per head, would move some by up to 4 lr.
-    moved = torch.cat([(p.detach() - before[k]).abs().flatten() for k, p in learner.module[TASK_ID].named_parameters()])
-    assert moved.max().item() <= LR * 1.001
-    assert moved.max().item() >= LR * 0.9
+    # not tiny); four steps, one per head's loss, would move some by up to 4 lr.
+    moved = torch.cat([(v - before[k]).abs().flatten() for k, v in task_weights(learner).items()])
+    assert LR * 0.9 <= moved.max().item() <= LR * 1.001
 
 
-@pytest.mark.parametrize(("freeze", "frozen_kind"), [(["task"], "task"), (["heads"], "heads")])
-def test_frozen_parts_do_not_change(freeze: list[str], frozen_kind: str) -> None:
+@pytest.mark.parametrize("freeze", [["task"], ["heads"]])
+def test_frozen_parts_do_not_change(freeze: list[str]) -> None:
     learner = build_learner(bandit_setup(lam=0.5, freeze=freeze))
-    heads = learner.module.head_ids()
-    task, head = learner.module[TASK_ID], learner.module[heads[0]]
-    frozen, trained = (task, head) if frozen_kind == "task" else (head, task)
-    assert not any(p.requires_grad for p in frozen.parameters())
-    frozen_ids = [TASK_ID] if frozen_kind == "task" else heads
-    assert not any(learner._module_optimizers.get(mid) for mid in frozen_ids)
-    before_frozen, before_trained = params_of(frozen), params_of(trained)
+    stack, head = learner.module[STACK_ID], learner.module.head_ids()[0]
+    frozen_params = stack.task_parameters() if freeze == ["task"] else stack.head_parameters()
+    assert not any(p.requires_grad for p in frozen_params)
+
+    def weights() -> tuple[dict, dict]:
+        task, heads = task_weights(learner), head_weights(learner, head)
+        return (task, heads) if freeze == ["task"] else (heads, task)
+
+    before_frozen, before_trained = weights()
     for seed in range(3):
-        learner._update(hand_batch(heads, seed=seed))
-    assert all(torch.equal(p, before_frozen[k]) for k, p in frozen.named_parameters())
-    assert any(not torch.equal(p, before_trained[k]) for k, p in trained.named_parameters())
+        one_update(learner, seed)
+    after_frozen, after_trained = weights()
+    assert all(torch.equal(v, before_frozen[k]) for k, v in after_frozen.items())
+    assert any(not torch.equal(v, before_trained[k]) for k, v in after_trained.items())
 
 
-def test_heads_share_the_learners_task_module() -> None:
+def test_head_views_read_the_learners_stack() -> None:
     learner = build_learner(bandit_setup(lam=0.5))
-    task = learner.module[TASK_ID]
+    stack = learner.module[STACK_ID]
     for mid in learner.module.head_ids():
-        head = learner.module[mid]
-        assert isinstance(head, PartnerHeadModule) and head.task is task
-    assert "task" not in dict(learner.module[learner.module.head_ids()[0]].named_children())
+        view = learner.module[mid]
+        assert view.stack is stack and not list(view.parameters())
+    assert [learner.module[mid].head for mid in learner.module.head_ids()] == list(range(stack.heads))
 
 
 @pytest.mark.parametrize("scale", [0.1, 0.0])
 def test_z_layers_learn_at_their_own_rate(scale: float) -> None:
     learner = build_learner(bandit_setup(lam=0.5, z_lr_scale=scale))
-    task = learner.module[TASK_ID]
-    before = params_of(task)
-    learner._update(hand_batch(learner.module.head_ids()))
+    before = task_weights(learner)
+    one_update(learner)
+    after = task_weights(learner)
 
     def largest_move(prefix: str) -> float:
-        return max((p.detach() - before[k]).abs().max().item() for k, p in task.named_parameters() if k.startswith(prefix))
+        return max((v - before[k]).abs().max().item() for k, v in after.items() if k.startswith(prefix))
 
     # Adam's first step moves each parameter by at most its learning rate, about that much
     # where the gradient is not tiny: lr x scale for the z layers, lr for the task logits.
     assert LR * scale * 0.9 <= largest_move("pi_tower") <= LR * scale * 1.001
     assert LR * 0.9 <= largest_move("pi_out") <= LR * 1.001
-    assert all(p.requires_grad == (scale > 0) for p in task.pi_tower.parameters())
+    z = learner.module[STACK_ID].task_parameters(z_only=True)
+    assert all(p.requires_grad == (scale > 0) for p in z)

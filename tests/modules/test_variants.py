@@ -9,22 +9,24 @@ import torch
 from rllib_conv.envs.blocks import BLUE, PASS, RED, encode_observation
 from rllib_conv.envs.oracles import oracle_for
 from rllib_conv.modules import AGG_HEAD_ID, TASK_ID
+from rllib_conv.modules.stacked_multi import STACK_ID
 from rllib_conv.training.algorithm import build_ppo_config
 from rllib_conv.training.ego_setup import resolve
 from rllib_conv.training.evaluate import head_probs, task_probs
 from rllib_conv.training.marginals import bandit_states
-from tests.helpers import bandit_setup, build_learner
+from tests.helpers import bandit_setup, build_learner, plain_ego
 
 
 def test_agg_is_one_network_for_all_partners() -> None:
     setup = bandit_setup(method="agg")
     assert setup.head_ids == [AGG_HEAD_ID]
     learner = build_learner(setup)
-    assert learner.module.head_ids() == [AGG_HEAD_ID]
+    assert learner.module.head_ids() == [f"{AGG_HEAD_ID}#0"] and learner.module[STACK_ID].heads == 1
+    assert plain_ego(setup).head_ids() == [AGG_HEAD_ID]
 
 
 def test_no_task_logits_ignores_the_task_logits() -> None:
-    module = build_learner(bandit_setup(method="no_task_logits")).module
+    module = plain_ego(bandit_setup(method="no_task_logits"))
     obs, mask = bandit_states({"symmetric": 2})
     head = module.head_ids()[0]
     before = head_probs(module, head, obs, mask)
@@ -35,7 +37,7 @@ def test_no_task_logits_ignores_the_task_logits() -> None:
 
 
 def test_modular_policy_adds_task_and_head_logits() -> None:
-    module = build_learner(bandit_setup(lam=0.5)).module
+    module = plain_ego(bandit_setup(lam=0.5))
     obs, mask = bandit_states({"symmetric": 2})
     head = module.head_ids()[0]
     with torch.no_grad():
@@ -48,13 +50,13 @@ def test_modular_policy_adds_task_and_head_logits() -> None:
 
 
 def test_low_dimensional_z() -> None:
-    module = build_learner(bandit_setup(model={"hidden": 30, "z_dim": 5})).module
+    module = plain_ego(bandit_setup(model={"hidden": 30, "z_dim": 5}))
     assert module[TASK_ID].pi_tower[-2].out_features == 5
     assert module[module.head_ids()[0]].pi[0].in_features == 5
 
 
 def test_oracle_puts_the_policy_on_optimal_actions_only() -> None:
-    module = build_learner(bandit_setup(method="oracle")).module
+    module = plain_ego(bandit_setup(method="oracle"))
     obs, mask = bandit_states({"symmetric": 2})
     optimal = oracle_for("bandit", {"symmetric": 2})(obs)
     np.testing.assert_allclose(task_probs(module, obs, mask), optimal / optimal.sum(axis=1, keepdims=True), atol=1e-6)
@@ -63,7 +65,7 @@ def test_oracle_puts_the_policy_on_optimal_actions_only() -> None:
 
 
 def test_masked_actions_get_zero_probability_and_finite_gradients() -> None:
-    module = build_learner(bandit_setup(lam=0.5)).module
+    module = plain_ego(bandit_setup(lam=0.5))
     obs, _ = bandit_states({"symmetric": 2})
     mask = np.ones((4, 8), dtype=np.int8)
     mask[:, [1, 2, 7]] = 0

@@ -5,11 +5,12 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 import torch
 
 from rllib_conv.modules import AGG_HEAD_ID, TASK_ID, ego_id
-from rllib_conv.pipelines.adapt import CURVE_COLUMNS, adapt_setup, run_adaptation
+from rllib_conv.pipelines.adapt import CURVE_COLUMNS, adapt_curve, run_adaptation
 from rllib_conv.pipelines.adapt_config import AdaptConfig
 from rllib_conv.pipelines.zeroshot import run_zeroshot
 from rllib_conv.training.algorithm import build_ppo_config
@@ -23,7 +24,8 @@ from tests.helpers import digest
 def test_adaptation_adds_a_fresh_head_and_reaches_the_new_partner(bandit_egos, tmp_path) -> None:
     trial = Path(bandit_egos["bandit-s2-hand"].path)
     before = digest(trial)
-    setup, load, _ = adapt_setup(AdaptConfig(runs=[str(trial)], run=str(trial), partner="hand-test-1"))
+    curve = adapt_curve(AdaptConfig(runs=[str(trial)]), str(trial), "hand-test-1")
+    setup, load = curve.setup, curve.load
     assert setup.head_ids == [ego_id("hand-test-1")] and set(load) == {TASK_ID}  # a new head, the task module kept
     assert setup.exp.lam == 0.0 and setup.exp.ppo.num_epochs == 50 and setup.exp.ppo.rollout_per_partner == 16
 
@@ -38,6 +40,17 @@ def test_adaptation_adds_a_fresh_head_and_reaches_the_new_partner(bandit_egos, t
     assert digest(trial) == before  # the trained ego's files are untouched
 
 
+def test_curves_packed_together_equal_curves_run_one_at_a_time(bandit_egos, tmp_path) -> None:
+    """Three curves as replicas of one algorithm give the curves each gives alone (float tolerance)."""
+    trial = bandit_egos["bandit-s2-hand"].path
+    raw = {"name": "p", "runs": [trial], "partners": ["hand-test-0", "hand-test-1", "hand-test-2"], "steps": 64, "episodes": 50}
+    packed = run_adaptation(raw, out=tmp_path / "packed", storage=tmp_path / "runs")
+    alone = run_adaptation({**raw, "name": "a", "max_pack": 1}, out=tmp_path / "alone", storage=tmp_path / "runs")
+    assert len(list((tmp_path / "runs" / "adapt-p").glob("AdaptTrainable_*"))) < len(list((tmp_path / "runs" / "adapt-a").glob("AdaptTrainable_*"))) == 3
+    pd.testing.assert_frame_equal(packed, alone, rtol=1e-5, atol=1e-6)
+    assert packed["exact_return"].nunique() > 3  # the curves moved
+
+
 def test_adapting_drops_the_head_penalty(bandit_egos, tmp_path) -> None:
     import shutil
 
@@ -47,14 +60,14 @@ def test_adapting_drops_the_head_penalty(bandit_egos, tmp_path) -> None:
     shutil.copytree(bandit_egos["bandit-s2-hand"].path, trial)
     trained = yaml.safe_load((trial / "config.yaml").read_text())
     (trial / "config.yaml").write_text(yaml.safe_dump({**trained, "head_l2": 0.1}))
-    setup, _, run_config = adapt_setup(AdaptConfig(runs=[str(trial)], run=str(trial), partner="hand-test-1"))
-    assert run_config.head_l2 == 0.1 and setup.exp.head_l2 == 0.0  # adapting is plain PPO, as in the paper
+    curve = adapt_curve(AdaptConfig(runs=[str(trial)]), str(trial), "hand-test-1")
+    assert curve.trained.head_l2 == 0.1 and curve.setup.exp.head_l2 == 0.0  # adapting is plain PPO, as in the paper
 
 
 def test_scratch_starts_from_nothing(bandit_egos, tmp_path) -> None:
     trial = bandit_egos["bandit-s2-hand"].path
-    setup, load, _ = adapt_setup(AdaptConfig(runs=[trial], run=trial, partner="hand-test-0", method="scratch"))
-    assert load == {} and setup.head_ids == [AGG_HEAD_ID]
+    curve = adapt_curve(AdaptConfig(runs=[trial], method="scratch"), trial, "hand-test-0")
+    assert curve.load == {} and curve.setup.head_ids == [AGG_HEAD_ID]
     curves = run_adaptation({"name": "s", "runs": [trial], "partners": ["hand-test-0"], "method": "scratch", "steps": 32}, out=tmp_path, storage=tmp_path / "runs")
     assert curves["exact_return"].iloc[0] < 0.5  # a fresh network knows neither rules nor conventions
     assert (curves["method"] == "scratch").all()
@@ -78,7 +91,7 @@ def test_zero_shot_refuses_non_modular_runs(tmp_path) -> None:
     (trial / "checkpoint_000000").mkdir(parents=True)
     (trial / "config.yaml").write_text(yaml.safe_dump(ExperimentConfig(population="bandit-s1-hand", method="agg").model_dump()))
     with pytest.raises(ValueError, match="not modular"):
-        zeroshot_plan(ZeroShotConfig(runs=[str(trial)], run=str(trial)))
+        zeroshot_plan(ZeroShotConfig(runs=[str(trial)]), str(trial))
 
 
 @pytest.mark.parametrize("method", ["modular", "no_task_logits"])
@@ -140,8 +153,8 @@ def test_one_maml_outer_step_moves_weights_by_outer_step_times_adaptation(ray_se
                 torch.testing.assert_close(runner[mid][k], after[mid][k])
         # The inner loop played the first partner only.
         sampled = result["env_runners"]["num_module_steps_sampled_lifetime"]
-        others = [sampled.get(f"partner@{e.name}", 0) for e in setup.train[1:]]
-        assert sampled[f"partner@{setup.train[0].name}"] >= 4 * 16 - 8 and max(others) <= 8
+        others = [sampled.get(f"partner@{e.name}#0", 0) for e in setup.train[1:]]  # replica 0's partner modules
+        assert sampled[f"partner@{setup.train[0].name}#0"] >= 4 * 16 - 8 and max(others) <= 8
     finally:
         algo.stop()
 

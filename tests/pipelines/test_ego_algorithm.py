@@ -12,24 +12,28 @@ import torch
 
 from rllib_conv.envs.blocks import decode_observation
 from rllib_conv.learners.marginal_learner import MarginalPPOLearner
-from rllib_conv.modules import TASK_ID, ego_id, partner_id
+from rllib_conv.modules import ego_id, partner_id
+from rllib_conv.modules.multi import replica_id
+from rllib_conv.modules.stacked_multi import STACK_ID
 from rllib_conv.pipelines.train import summarize
-from rllib_conv.training.algorithm import build_ppo_config
+from rllib_conv.training.algorithm import Replica, build_algorithm, build_ppo_config
 from rllib_conv.training.ego_setup import resolve
 from rllib_conv.training.evaluate import head_probs
 from rllib_conv.training.experiment import ExperimentConfig
 from rllib_conv.training.marginals import bandit_states
+from rllib_conv.training.replica_export import replica_module
+from rllib_conv.training.weights import learner_module
 
 SEEN: dict[str, list] = {}
 
 
 class RecordingLearner(MarginalPPOLearner):
-    """Records which modules and which observations reach the loss."""
+    """Records which modules and which observations reach the learner's minibatch loop."""
 
-    def compute_losses(self, *, fwd_out, batch):
-        for mid, b in batch.items():
+    def _stacked_epochs(self, data, plan):
+        for mid, b in data.items():
             SEEN.setdefault(mid, []).append(b["obs"]["observations"].detach().numpy().copy())
-        return super().compute_losses(fwd_out=fwd_out, batch=batch)
+        return super()._stacked_epochs(data, plan)
 
 
 def small(population: str, **overrides) -> ExperimentConfig:
@@ -46,7 +50,7 @@ def test_ego_never_trains_on_partner_moves(ray_session) -> None:
         algo.train()
     finally:
         algo.stop()
-    assert set(SEEN) == {ego_id(e.name) for e in setup.train}  # no partner module, no task-only batch
+    assert set(SEEN) == {replica_id(ego_id(e.name), 0) for e in setup.train}  # no partner module, no stack-only batch
     moves = {decode_observation(o)["move"] for rows in SEEN.values() for obs in rows for o in obs}
     assert moves == {0, 2, 4}  # P1's own turns only: the partner moves on 1, 3, 5
 
@@ -59,29 +63,43 @@ def test_episodes_are_spread_evenly_over_partners(ray_session) -> None:
     finally:
         algo.stop()
     sampled = result["env_runners"]["num_module_steps_sampled_lifetime"]
-    counts = [sampled[ego_id(e.name)] for e in setup.train]
-    assert counts == [sampled[partner_id(e.name)] for e in setup.train]
+    counts = [sampled[replica_id(ego_id(e.name), 0)] for e in setup.train]
+    assert counts == [sampled[replica_id(partner_id(e.name), 0)] for e in setup.train]
     assert max(counts) - min(counts) <= 8  # round robin: at most one episode per vector sub-env apart
     assert sum(counts) >= 240
 
 
-def _run(exp: ExperimentConfig, iterations: int):
-    algo = build_ppo_config(resolve(exp)).build_algo()
+def _run(exps: list[ExperimentConfig], iterations: int, replica: int = 0):
+    """Train `exps` packed as replicas of one algorithm; return replica `replica`'s metrics per iteration and final task weights."""
+    replicas = [Replica(resolve(exp)) for exp in exps]
+    algo = build_algorithm(replicas)
     try:
-        metrics = [summarize(algo.train(), resolve(exp)) for _ in range(iterations)]
-        weights = {k: v.clone() for k, v in algo.env_runner.module[TASK_ID].state_dict().items()}
-        return metrics, weights
+        metrics = [summarize(algo.train(), replicas[replica].setup, replica, parallel=True) for _ in range(iterations)]
+        return metrics, learner_module(algo)[STACK_ID].task_state(replica)
     finally:
         algo.stop()
 
 
 def test_same_seed_same_metrics_different_seed_differs(ray_session) -> None:
-    m1, w1 = _run(small("bandit-s2-hand", seed=3), 3)
-    m2, w2 = _run(small("bandit-s2-hand", seed=3), 3)
-    m3, w3 = _run(small("bandit-s2-hand", seed=4), 3)
+    m1, w1 = _run([small("bandit-s2-hand", seed=3)], 3)
+    m2, w2 = _run([small("bandit-s2-hand", seed=3)], 3)
+    m3, w3 = _run([small("bandit-s2-hand", seed=4)], 3)
     assert m1 == m2
     assert all(torch.equal(w1[k], w2[k]) for k in w1)
     assert m1 != m3 or any(not torch.equal(w1[k], w3[k]) for k in w1)
+
+
+def test_a_replica_trains_as_it_would_alone(ray_session) -> None:
+    """Seed 3 packed between seeds 5 and 7 gets the returns and the weights seed 3 gets alone (float tolerance)."""
+    alone, w_alone = _run([small("bandit-s2-hand", seed=3)], 3)
+    packed, w_packed = _run([small("bandit-s2-hand", seed=s) for s in (5, 3, 7)], 3, replica=1)
+    for a, p in zip(alone, packed):
+        assert a.keys() == p.keys()
+        np.testing.assert_allclose([p[k] for k in a], [a[k] for k in a], rtol=1e-5, atol=1e-6)
+    for k in w_alone:
+        torch.testing.assert_close(w_packed[k], w_alone[k], rtol=1e-4, atol=1e-5)
+    others, _ = _run([small("bandit-s2-hand", seed=s) for s in (5, 3, 7)], 3, replica=0)
+    assert others != packed  # the neighbours are other runs
 
 
 def test_partner_modules_never_change(ray_session) -> None:
@@ -90,10 +108,11 @@ def test_partner_modules_never_change(ray_session) -> None:
     obs, mask = bandit_states(setup.env_config)
     batch = {"obs": {"observations": torch.as_tensor(obs), "action_mask": torch.as_tensor(mask, dtype=torch.float32)}}
     try:
-        before = {e.name: algo.env_runner.module[partner_id(e.name)].forward_inference(batch)["actions"].tolist() for e in setup.train}
+        partners = {e.name: replica_id(partner_id(e.name), 0) for e in setup.train}
+        before = {n: algo.env_runner.module[mid].forward_inference(batch)["actions"].tolist() for n, mid in partners.items()}
         algo.train()
         algo.train()
-        after = {e.name: algo.env_runner.module[partner_id(e.name)].forward_inference(batch)["actions"].tolist() for e in setup.train}
+        after = {n: algo.env_runner.module[mid].forward_inference(batch)["actions"].tolist() for n, mid in partners.items()}
         learner = algo.learner_group._learner
         # `_module_optimizers` is a defaultdict: a module may be listed with no optimizer.
         assert not any(names for mid, names in learner._module_optimizers.items() if mid.startswith("partner@"))
@@ -109,23 +128,30 @@ def test_checkpoint_round_trip_in_a_fresh_process(ray_session, tmp_path) -> None
         algo.train()
         algo.save_to_path(str(tmp_path))
         obs, _ = bandit_states(setup.env_config)
-        heads = [ego_id(e.name) for e in setup.train]
-        expected = {h: head_probs(algo.env_runner.module, h, obs).tolist() for h in heads}
+        heads = setup.head_ids
+        plain = replica_module(algo.env_runner.module, 0, Replica(setup))
+        expected = {h: head_probs(plain, h, obs).tolist() for h in heads}
     finally:
         algo.stop()
-    # The task weights are stored once, beside one folder per head.
+    # The weights are stored once (the stack), beside a (weightless) view per head.
     stored = sorted(p.name for p in (tmp_path / "learner_group" / "learner" / "rl_module").iterdir() if p.is_dir())
-    assert TASK_ID in stored and all(h in stored for h in heads)
+    assert STACK_ID in stored and all(replica_id(h, 0) in stored for h in heads)
     script = textwrap.dedent(
         f"""
         import json, ray
         from ray.rllib.algorithms.algorithm import Algorithm
+        from rllib_conv.training.algorithm import Replica
+        from rllib_conv.training.ego_setup import resolve
+        from rllib_conv.training.experiment import ExperimentConfig
         from rllib_conv.training.marginals import bandit_states
         from rllib_conv.training.evaluate import head_probs
+        from rllib_conv.training.replica_export import replica_module
         ray.init(num_cpus=1, include_dashboard=False, log_to_driver=False)
         algo = Algorithm.from_checkpoint({str(tmp_path)!r})
+        setup = resolve(ExperimentConfig.model_validate({setup.exp.model_dump()!r}))
+        plain = replica_module(algo.env_runner.module, 0, Replica(setup))
         obs, _ = bandit_states({setup.env_config!r})
-        print("RESULT" + json.dumps({{h: head_probs(algo.env_runner.module, h, obs).tolist() for h in {heads!r}}}))
+        print("RESULT" + json.dumps({{h: head_probs(plain, h, obs).tolist() for h in {heads!r}}}))
         algo.stop()
         """
     )

@@ -13,7 +13,7 @@ from rllib_conv import envs
 from rllib_conv.partners.bandit import BanditConventionPartner
 from rllib_conv.partners.blocks import BlocksLeader, PermutationPartner, derangements
 from rllib_conv.partners.play import episode_stream
-from rllib_conv.pipelines.adapt import adapt_setup, run_adaptation
+from rllib_conv.pipelines.adapt import adapt_curve, run_adaptation
 from rllib_conv.pipelines.adapt_config import AdaptConfig
 from rllib_conv.training.head_pick import pick_head
 
@@ -76,7 +76,7 @@ def test_pick_is_refused_without_per_partner_heads(bandit_egos, tmp_path) -> Non
     trained = yaml.safe_load((trial / "config.yaml").read_text())
     (trial / "config.yaml").write_text(yaml.safe_dump({**trained, "method": "agg", "lam": 0.0}))
     with pytest.raises(ValueError, match="one head per training partner.*'agg'"):
-        adapt_setup(AdaptConfig(runs=[str(trial)], run=str(trial), partner="hand-test-1", head_init="pick"))
+        adapt_curve(AdaptConfig(runs=[str(trial)], head_init="pick"), str(trial), "hand-test-1")
 
 
 def test_adapting_to_a_known_convention_picks_its_head(bandit_egos, tmp_path) -> None:

@@ -76,7 +76,9 @@ def test_a_stage_reruns_only_when_the_plan_asks_for_more_than_its_marker_covers(
     narrowed = narrow(plan_for("bandit"), ["bandit-s2-hand"], ["agg"])
     Reproduction(narrowed, tmp_path, log=logs.append).run()
     seconds, covered = read_marker(tmp_path / "train.done")
-    assert covered == ["bandit-s2-hand__modular-lam0.5 seeds=0,1,2 steps=10000", "bandit-s2-hand__agg seeds=0,1,2 steps=10000"] and seconds >= 0
+    # Zero-shot's own egos (bandit-s2-hand is a zero-shot population, no_task_logits a zero-shot method) train here too.
+    trained = ["modular-lam0.5", "agg", "no_task_logits"]
+    assert covered == [f"bandit-s2-hand__{m} seeds=0,1,2 steps=10000" for m in trained] and seconds >= 0
 
     Reproduction(narrow(plan_for("bandit"), ["bandit-s2-hand"], ["agg"]), tmp_path, log=logs.append).run()
     assert len(calls) == 1 and logs[-1] == "[bandit] train: done before, skipped"
@@ -92,10 +94,11 @@ def test_a_stage_reruns_only_when_the_plan_asks_for_more_than_its_marker_covers(
 def test_egos_train_for_the_papers_budget_unless_train_steps_sets_another(tmp_path, monkeypatch) -> None:
     default = Reproduction(narrow(plan_for("blocks"), ["blocks-perm"], ["agg"]), tmp_path)
     assert "run" not in default.experiment("blocks-perm", default.plan.paper_method)  # the config default: the paper's 1M steps
-    assert default.stage_items("train") == [f"blocks-perm__{m} seeds=0,1,2 steps=1000000" for m in ("modular-lam0.5", "agg")]
+    trained = ("modular-lam0.5", "agg", "no_task_logits", "modular-lam0.5-hl0.01")  # the zero-shot methods train too
+    assert default.stage_items("train") == [f"blocks-perm__{m} seeds=0,1,2 steps=1000000" for m in trained]
 
     bandit = Reproduction(narrow(plan_for("bandit"), ["bandit-s2-hand", "bandit-user-study"], ["agg"]), tmp_path)
-    assert [i.rsplit(" ", 1)[1] for i in bandit.stage_items("train")] == ["steps=10000"] * 2 + ["steps=40000"] * 2  # the user-study override
+    assert [i.rsplit(" ", 1)[1] for i in bandit.stage_items("train")] == ["steps=10000"] * 2 + ["steps=40000"] * 2 + ["steps=10000"]  # the user-study override
 
     short = Reproduction(narrow(plan_for("bandit", train_steps=500), ["bandit-s2-hand", "bandit-user-study"], ["agg"]), tmp_path)
     assert all(short.experiment(p, m)["run"]["timesteps"] == 500 for p, m in short.trained())  # over the population override too
@@ -113,13 +116,14 @@ def test_egos_train_for_the_papers_budget_unless_train_steps_sets_another(tmp_pa
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (["--train-steps", "0"], "--train-steps: expected a positive number of env steps, got 0"),
-        (["--seeds", "0"], "--seeds: expected at least 1 seed per method, got 0"),
+        (["--train-steps", "0"], "argument --train-steps: expected a whole number >= 1, got '0'"),
+        (["--seeds", "0"], "argument --seeds: expected a whole number >= 1, got '0'"),
     ],
 )
 def test_reproduce_rejects_bad_budgets_before_running_anything(tmp_path, capsys, args, message) -> None:
-    assert main(["reproduce", "bandit", "--out", str(tmp_path / "out"), *args]) == 2
-    assert message in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exit_:  # argparse's own check of the number
+        main(["reproduce", "bandit", "--out", str(tmp_path / "out"), *args])
+    assert exit_.value.code == 2 and message in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
 
 
@@ -130,21 +134,21 @@ def test_a_marker_without_items_covers_nothing(tmp_path, monkeypatch) -> None:
     assert read_marker(tmp_path / "train.done") == (12.5, [])
     Reproduction(narrow(plan_for("bandit"), ["bandit-s2-hand"], ["agg"]), tmp_path, log=lambda _: None).run()
     seconds, covered = read_marker(tmp_path / "train.done")
-    assert calls == ["bandit"] and seconds >= 12.5 and len(covered) == 2
+    assert calls == ["bandit"] and seconds >= 12.5 and len(covered) == 3
 
 
 def test_marginals_leave_out_unfinished_trials_and_populations_whose_conventions_are_not_uniform(tmp_path, monkeypatch) -> None:
     plan = narrow(plan_for("bandit"), ["bandit-s2-hand", "bandit-user-study"], ["agg"])
     repro = Reproduction(plan, tmp_path, log=lambda _: None)
     assert repro.stage_items("marginals") == [f"bandit-s2-hand__{m} seeds=0,1,2" for m in ("agg", "modular-lam0.5", "no_task_logits")]
-    assert len(repro.stage_items("train")) == 4  # the user-study egos are still trained and adapted
+    assert len(repro.stage_items("train")) == 5  # the user-study egos are still trained and adapted
     for name in ("bandit-s2-hand__agg", "bandit-user-study__agg", "bandit-s2-hand__maml"):
-        (tmp_path / "runs" / name / "trial_0").mkdir(parents=True)
-        (tmp_path / "runs" / name / "trial_0" / CONFIG_FILE).write_text("{}")
+        (tmp_path / "runs" / name / "point_0" / "seed=0").mkdir(parents=True)
+        (tmp_path / "runs" / name / "point_0" / "seed=0" / CONFIG_FILE).write_text("{}")
     for name in ("bandit-s2-hand__agg", "bandit-user-study__agg"):  # maml is still training: no eval.json yet
-        (tmp_path / "runs" / name / "trial_0" / EVAL_FILE).write_text("{}")
+        (tmp_path / "runs" / name / "point_0" / "seed=0" / EVAL_FILE).write_text("{}")
     seen: list[str] = []
-    monkeypatch.setattr("rllib_conv.pipelines.reproduce.marginal_report", lambda trials: seen.extend(t.parent.name for t in trials) or pd.DataFrame({"run": [str(t) for t in trials]}))
+    monkeypatch.setattr("rllib_conv.pipelines.reproduce.marginal_report", lambda trials: seen.extend(t.parent.parent.name for t in trials) or pd.DataFrame({"run": [str(t) for t in trials]}))
     repro.stage_marginals()
     assert seen == ["bandit-s2-hand__agg"]
 

@@ -17,6 +17,7 @@ from rllib_conv import partners
 from rllib_conv.common import config_files
 from rllib_conv.envs.bandit import good_arms, paper_prizes
 from rllib_conv.modules import partner_id
+from rllib_conv.modules.multi import replica_id
 from rllib_conv.partners.trained import TrainedPolicyPartner
 from rllib_conv.pipelines.crossplay import crossplay, write_crossplay
 from rllib_conv.pipelines.selfplay import train_population
@@ -91,10 +92,11 @@ def test_trained_population_plugs_into_ego_training(trained) -> None:
     algo = build_ppo_config(setup).build_algo()
     batch = {"obs": {"observations": OBS, "action_mask": MASK.astype(np.float32)}}
     try:
-        before = {e.name: algo.env_runner.module[partner_id(e.name)].forward_inference(batch)["actions"].tolist() for e in setup.train}
+        modules = {e.name: algo.env_runner.module[replica_id(partner_id(e.name), 0)] for e in setup.train}  # replica 0's partners
+        before = {name: m.forward_inference(batch)["actions"].tolist() for name, m in modules.items()}
         algo.train()
-        after = {e.name: algo.env_runner.module[partner_id(e.name)].forward_inference(batch)["actions"].tolist() for e in setup.train}
-        assert isinstance(algo.env_runner.module[partner_id(setup.train[0].name)].partner, TrainedPolicyPartner)
+        after = {name: m.forward_inference(batch)["actions"].tolist() for name, m in modules.items()}
+        assert isinstance(modules[setup.train[0].name].partner, TrainedPolicyPartner)
     finally:
         algo.stop()
     assert before == after == {e.name: e.build().act_batch(OBS, MASK).tolist() for e in setup.train}

@@ -25,14 +25,16 @@ PARTNERS = [f"hand-train-{k}" for k in range(4)]
 
 def test_modular_ego_learns_conventions_and_marginals_within_paper_budget(bandit_egos) -> None:
     """Bandit, 2 symmetric contexts, 4 hand-designed partners, lam 0.5, the paper's 10 000 steps."""
-    result = bandit_egos["bandit-s2-hand"]
+    ego = bandit_egos["bandit-s2-hand"]
+    result = ego.result
     assert result.error is None
     m = result.metrics
     assert m["env_steps"] <= 10_000 + 256  # stops at the first iteration reaching the budget
     for name in PARTNERS:
         assert m[f"eval/exact/{name}"] >= 0.95, (name, m[f"eval/exact/{name}"])
     assert m["eval/marginal_distance/all"] <= 0.1
-    trial = result.path
+    trial = ego.path  # the trial's one replica, seed 0
+    assert trial == f"{result.path}/seed=0"
     saved = yaml.safe_load(open(f"{trial}/{CONFIG_FILE}"))
     assert saved["lam"] == 0.5 and saved["model"]["hidden"] == 30 and saved["ppo"]["num_epochs"] == 20
     assert json.load(open(f"{trial}/{EVAL_FILE}"))["eval/marginal_distance/all"] == m["eval/marginal_distance/all"]
@@ -65,7 +67,7 @@ def test_grid_over_lam_from_yaml(ray_session, tmp_path) -> None:
     )
     results = run(experiment.load(path), storage=tmp_path / "runs")
     assert len(results) == 2 and not results.errors
-    lams = sorted(yaml.safe_load(open(f"{r.path}/{CONFIG_FILE}"))["lam"] for r in results)
+    lams = sorted(yaml.safe_load(open(f"{r.path}/seed=0/{CONFIG_FILE}"))["lam"] for r in results)
     assert lams == [0.0, 0.5]
     assert yaml.safe_load(open(tmp_path / "runs" / "grid" / "experiment.yaml"))["lam"] == {"grid_search": [0.0, 0.5]}
 
@@ -87,7 +89,7 @@ def test_head_penalty_hands_the_rules_to_the_task_module_and_keeps_the_conventio
     plain_rule, _, _ = head_sizes(bandit_egos["bandit-s2-hand"].path)
     raw = experiment.load("tune_configs/bandit_modular.yaml", ["name=penalised", "head_l2=0.05"])
     result = run(raw, storage=tmp_path)[0]
-    rule_size, convention_size, task = head_sizes(result.path)
+    rule_size, convention_size, task = head_sizes(f"{result.path}/seed=0")
     assert plain_rule > 1.0  # without the penalty the heads also push the rule arms
     assert rule_size < 0.01 * plain_rule and convention_size > 10 * rule_size
     assert (task[rule] * optimal[rule]).sum(axis=1).min() >= 0.95  # the task module alone plays the rules

@@ -9,7 +9,6 @@ import pickle
 import signal
 import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -19,6 +18,7 @@ import yaml
 
 from rllib_conv.common.run_folders import RL_MODULE_DIR, checkpoints
 from rllib_conv.training.checkpoints import last_checkpoint
+from tests.sweeps.killing import kill_ray_instance, private_ray_tmp
 
 SWEEP = {
     "name": "sweep",
@@ -29,28 +29,6 @@ SWEEP = {
     "run": {"timesteps": 2560, "checkpoint_every": 3, "keep_checkpoints": 2},
 }
 ITERATIONS = 2560 // 64
-
-
-def _ray_tmp() -> str:
-    # Short: Ray's unix socket paths live under it and have a length limit.
-    return tempfile.mkdtemp(prefix="rt", dir="/tmp")
-
-
-def _kill_ray_instance(ray_tmp: str) -> None:
-    """SIGKILL every process of the Ray instance rooted at `ray_tmp` (and nothing else)."""
-    for pid in os.listdir("/proc"):
-        if not pid.isdigit():
-            continue
-        try:
-            cmd = Path(f"/proc/{pid}/cmdline").read_bytes()
-            env = Path(f"/proc/{pid}/environ").read_bytes()
-        except OSError:
-            continue
-        if ray_tmp.encode() in cmd or f"RAY_TMPDIR={ray_tmp}".encode() in env:
-            try:
-                os.kill(int(pid), signal.SIGKILL)
-            except ProcessLookupError:
-                pass
 
 
 def _sweep(config: Path, storage: Path, ray_tmp: str, *extra: str) -> subprocess.Popen:
@@ -70,12 +48,12 @@ def _iterations(storage: Path) -> list[int]:
 
 
 def _outcome(storage: Path) -> dict[float, dict]:
-    """Per lam: the final evaluation and the final task-module weights."""
+    """Per lam: the final evaluation and task-module weights of its trained ego, its Tune trial folder."""
     out = {}
-    for trial in sorted(p.parent for p in storage.glob("sweep/*/config.yaml")):
-        lam = yaml.safe_load((trial / "config.yaml").read_text())["lam"]
-        weights = pickle.loads((last_checkpoint(trial) / RL_MODULE_DIR / "task" / "module_state.pkl").read_bytes())
-        out[lam] = {"eval": json.loads((trial / "eval.json").read_text()), "weights": weights, "trial": trial}
+    for ego in sorted(p.parent for p in storage.glob("sweep/*/seed=*/config.yaml")):
+        lam = yaml.safe_load((ego / "config.yaml").read_text())["lam"]
+        weights = pickle.loads((last_checkpoint(ego) / RL_MODULE_DIR / "task" / "module_state.pkl").read_bytes())
+        out[lam] = {"eval": json.loads((ego / "eval.json").read_text()), "weights": weights, "trial": ego.parent, "ego": ego}
     return out
 
 
@@ -83,13 +61,13 @@ def test_sigkill_then_resume_matches_an_uninterrupted_sweep(tmp_path) -> None:
     config = tmp_path / "sweep.yaml"
     config.write_text(yaml.safe_dump(SWEEP))
 
-    reference, ray_a = tmp_path / "reference", _ray_tmp()
+    reference, ray_a = tmp_path / "reference", private_ray_tmp()
     proc = _sweep(config, reference, ray_a)
     out, _ = proc.communicate(timeout=600)
-    _kill_ray_instance(ray_a)
+    kill_ray_instance(ray_a)
     assert proc.returncode == 0, out.decode()[-3000:]
 
-    interrupted, ray_b = tmp_path / "interrupted", _ray_tmp()
+    interrupted, ray_b = tmp_path / "interrupted", private_ray_tmp()
     proc = _sweep(config, interrupted, ray_b)
     deadline = time.time() + 300
     while time.time() < deadline and not any(i >= ITERATIONS // 2 for i in _iterations(interrupted)):
@@ -97,13 +75,13 @@ def test_sigkill_then_resume_matches_an_uninterrupted_sweep(tmp_path) -> None:
     assert any(0 < i < ITERATIONS for i in _iterations(interrupted)), "the sweep should be killed mid-way"
     os.killpg(proc.pid, signal.SIGKILL)
     proc.wait()
-    _kill_ray_instance(ray_b)
+    kill_ray_instance(ray_b)
     killed_at = _iterations(interrupted)
 
-    ray_c = _ray_tmp()
+    ray_c = private_ray_tmp()
     proc = _sweep(config, interrupted, ray_c, "--resume")
     out, _ = proc.communicate(timeout=600)
-    _kill_ray_instance(ray_c)
+    kill_ray_instance(ray_c)
     assert proc.returncode == 0, out.decode()[-3000:]
     assert "--- 2/2 trials finished ---" in out.decode()  # the live table's last print
 
@@ -111,8 +89,9 @@ def test_sigkill_then_resume_matches_an_uninterrupted_sweep(tmp_path) -> None:
     assert sorted(resumed) == sorted(expected) == [0.0, 0.5]
     for lam in expected:
         assert len(checkpoints(resumed[lam]["trial"])) <= SWEEP["run"]["keep_checkpoints"]  # old ones pruned
-        progress = pd.read_csv(resumed[lam]["trial"] / "progress.csv")
-        assert progress["training_iteration"].tolist() == list(range(1, ITERATIONS + 1)), (lam, killed_at)
+        for folder in (resumed[lam]["trial"], resumed[lam]["ego"]):  # Tune's log and the ego's own
+            progress = pd.read_csv(folder / "progress.csv")
+            assert progress["training_iteration"].tolist() == list(range(1, ITERATIONS + 1)), (lam, killed_at, folder)
         assert resumed[lam]["eval"].keys() == expected[lam]["eval"].keys()
         for key, value in expected[lam]["eval"].items():
             if key not in ("wall_s", "setup_s"):  # timings

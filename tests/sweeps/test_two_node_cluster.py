@@ -35,6 +35,6 @@ def test_sweep_runs_its_trials_on_the_second_node(tmp_path) -> None:
     trials = sorted((tmp_path / "runs" / "cluster").glob("EgoTrainable_*"))
     assert len(trials) == 2
     for trial in trials:
-        assert json.loads((trial / "eval.json").read_text())["eval/mean/hand-train-0"] >= 0.0
+        assert json.loads((trial / "seed=0" / "eval.json").read_text())["eval/mean/hand-train-0"] >= 0.0
         params = json.loads((trial / "params.json").read_text())
         assert params["run"]["resources"] == {"second_node": 1}

@@ -1,0 +1,122 @@
+"""Wall time of fixed `reproduce` slices, by the code before the speed work (a git worktree of its commit) and now.
+
+    OMP_NUM_THREADS=1 python benchmarks/reproduce_walltime.py [--old-commit 63f6b75] [--slices bandit blocks] [--work DIR]
+
+Each slice runs from an empty folder, old code then new, one after the other on the same
+machine (it is shared and noisy: compare the ratio, not the seconds). Printed and written
+to `benchmarks/results/reproduce_walltime.json`: per slice the wall time of each, the
+ratio, the stage times, and for the new code where each stage's core-seconds went (trial
+set-up, RLlib iterations, evaluations, and what is left of cores x wall: Tune's overhead
+and idle cores), read from the `time/*` results every trial reports.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+from typing import Any
+
+from _common import machine, write_result
+
+REPO = Path(__file__).resolve().parents[1]
+SLICE_SCRIPT = REPO / "benchmarks" / "_reproduce_slice.py"
+OLD_COMMIT = "63f6b75"  # main before issue 22: the house issue, the old training loop
+SLICES = {
+    "bandit": {
+        "what": "bandit Arms 2 hand-designed partners, every method (8 + scratch), 3 seeds: train, adapt, zero-shot, marginals",
+        "args": ["bandit", "--populations", "bandit-s2-hand"],
+    },
+    "blocks": {
+        "what": "blocks hand-designed partners, ours lam 0.5 and BaselineAgg (+ scratch, picked head), 50k-step egos, 3 seeds: train, adapt",
+        "args": ["blocks", "--populations", "blocks-perm", "--methods", "modular-lam0.5", "agg", "--train-steps", "50000", "--no-zeroshot"],
+    },
+}
+STAGE_RUNS = {"train": "train-stage-", "adapt": "adapt-stage-", "zeroshot": "zeroshot-stage-"}
+
+
+def worktree(commit: str, work: Path) -> Path:
+    """A checkout of `commit` (a git worktree, made once)."""
+    path = work / f"old-{commit}"
+    if not (path / "rllib_conv").is_dir():
+        subprocess.run(["git", "-C", str(REPO), "worktree", "add", "--detach", str(path), commit], check=True, capture_output=True)
+    return path
+
+
+def run_slice(code: Path, args: list[str], out: Path) -> dict[str, Any]:
+    """Run a slice with the rllib_conv of `code`; return its wall seconds and stage seconds."""
+    env = {**os.environ, "PYTHONPATH": str(code), "OMP_NUM_THREADS": "1", "RAY_ADDRESS": ""}
+    proc = subprocess.run([sys.executable, str(SLICE_SCRIPT), args[0], str(out), *args[1:]], cwd=code, env=env, capture_output=True, text=True)
+    line = next((ln for ln in proc.stdout.splitlines() if ln.startswith("SLICE ")), None)
+    if proc.returncode != 0 or line is None:
+        raise RuntimeError(f"slice {args} with {code} failed:\n{(proc.stdout + proc.stderr)[-4000:]}")
+    return json.loads(line[len("SLICE ") :])
+
+
+def _last_result(trial: Path) -> dict[str, Any]:
+    lines = [ln for ln in (trial / "result.json").read_text().splitlines() if ln.strip()] if (trial / "result.json").is_file() else []
+    return json.loads(lines[-1]) if lines else {}
+
+
+def breakdown(game_dir: Path, stages: dict[str, float], cores: int) -> dict[str, dict[str, float]]:
+    """Per stage of the new code: core-seconds in trial set-up, RLlib iterations and evaluations; the rest of cores x wall."""
+    out = {}
+    for stage, prefix in STAGE_RUNS.items():
+        results = [_last_result(t) for run in (game_dir / "runs").glob(f"{prefix}*") for t in run.iterdir() if t.is_dir()]
+        results = [r for r in results if r]
+        if not results or stage not in stages:
+            continue
+        parts = {kind: sum(r.get(f"time/{kind}", 0.0) for r in results) for kind in ("setup", "iterate", "evaluate")}
+        busy = parts["setup"] + sum(r.get("time_total_s", 0.0) for r in results)
+        out[stage] = {"trials": len(results), **{f"{k}_core_s": v for k, v in parts.items()}, "tune_and_idle_core_s": cores * stages[stage] - busy}
+    return out
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--old-commit", default=OLD_COMMIT)
+    p.add_argument("--slices", nargs="+", default=list(SLICES), choices=list(SLICES))
+    p.add_argument("--work", type=Path, default=None, help="where the old worktree and the slices' folders go (default: a temp dir)")
+    args = p.parse_args()
+    work = args.work or Path(tempfile.mkdtemp(prefix="walltime-"))
+    old = worktree(args.old_commit, work)
+    cores = os.cpu_count() or 1
+    rows = []
+    for name in args.slices:
+        spec = SLICES[name]
+        before = run_slice(old, spec["args"], work / f"{name}-old")
+        after = run_slice(REPO, spec["args"], work / f"{name}-new")
+        game_dir = work / f"{name}-new" / spec["args"][0]
+        rows.append(
+            {
+                "slice": name,
+                "what": spec["what"],
+                "old_wall_s": before["wall_s"],
+                "new_wall_s": after["wall_s"],
+                "speedup": before["wall_s"] / after["wall_s"],
+                "old_stages_s": before["stages"],
+                "new_stages_s": after["stages"],
+                "new_breakdown": breakdown(game_dir, after["stages"], cores),
+            }
+        )
+        print(f"{name}: old {before['wall_s']:.0f} s, new {after['wall_s']:.0f} s, {before['wall_s'] / after['wall_s']:.1f}x faster", flush=True)
+    print()
+    print(f"{'slice':8} {'stage':9} {'old s':>8} {'new s':>8} {'ratio':>6}   new core-seconds: setup / iterate / evaluate / Tune+idle")
+    for row in rows:
+        for stage, old_s in row["old_stages_s"].items():
+            new_s = row["new_stages_s"].get(stage, float("nan"))
+            b = row["new_breakdown"].get(stage)
+            split = f"{b['setup_core_s']:.0f} / {b['iterate_core_s']:.0f} / {b['evaluate_core_s']:.0f} / {b['tune_and_idle_core_s']:.0f}" if b else ""
+            print(f"{row['slice']:8} {stage:9} {old_s:8.0f} {new_s:8.0f} {old_s / new_s if new_s else float('nan'):6.1f}   {split}")
+        print(f"{row['slice']:8} {'total':9} {row['old_wall_s']:8.0f} {row['new_wall_s']:8.0f} {row['speedup']:6.1f}")
+    path = write_result("reproduce_walltime", {"old_commit": args.old_commit, "cores": cores, "slices": rows})
+    print(f"wrote {path}")
+    print(f"machine: {machine()['cpu']}, {cores} cores")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,205 @@
+"""`EgoStack`: the weights of K replica egos (task module + H heads each) as stacked tensors, run as batched matmuls.
+
+Replicas (the seeds of one experiment, or the curves of one adaptation) train in one
+algorithm. Were each its own set of small torch modules, every forward and backward pass
+and every optimizer step would cost one Python-level op per layer per module per replica;
+on our 30-500-unit networks that overhead is nearly all the time. Here every layer of
+every replica's task module is one tensor `[K, out, in]` and every layer of every head one
+tensor `[K, H, out, in]`, so one `baddbmm` runs a layer for all of them.
+
+The stacked tensors hold exactly the weights of K independent `TaskModule`s and K x H
+`PartnerHeadModule`s: `task_state(r)` / `head_state(r, h)` read one out under the plain
+modules' parameter names, `load_task` / `load_head` write one in, and initialisation copies
+freshly built plain modules (their own seeds), so a replica starts, and through the
+elementwise Adam and per-replica gradient clipping of the learner also trains, exactly as
+it would alone.
+
+The module has no agent mapped to it (it is the `stack` module of `StackedEgoMultiRLModule`);
+`HeadView`s, one per (replica, head), are what agents map to.
+"""
+
+from __future__ import annotations
+
+from typing import Any, NamedTuple
+
+import torch
+from ray.rllib.core.rl_module.torch import TorchRLModule
+from torch import nn
+
+from rllib_conv.envs.oracles import oracle_for
+from rllib_conv.modules.mlp import masked_logits
+from rllib_conv.modules.partner_head import PartnerHeadModule
+from rllib_conv.modules.task_module import TaskModule
+
+# The Linear layers of the plain modules, by their parameter-name prefix (mlp() puts a ReLU between each).
+TASK_POLICY = ("pi_tower.0", "pi_tower.2")
+TASK_LOGITS_LAYER = "pi_out.0"
+TASK_VALUE = ("vf.0", "vf.2", "vf.4")
+HEAD_POLICY = ("pi.0", "pi.2", "pi.4")
+HEAD_VALUE = ("vf.0", "vf.2", "vf.4")
+
+
+def _name(kind: str, layer: str, part: str) -> str:
+    return f"{kind}__{layer.replace('.', '_')}__{part}"
+
+
+def _linear(x: torch.Tensor, weight: torch.Tensor, bias: torch.Tensor) -> torch.Tensor:
+    """x [G, N, in] through G stacked Linear layers (weight [G, out, in], bias [G, out]) -> [G, N, out]."""
+    return torch.baddbmm(bias.unsqueeze(1), x, weight.transpose(1, 2))
+
+
+class StackedTask(NamedTuple):
+    """The task modules' output on rows [K, N]: latent z, masked task logits, task value."""
+
+    z: torch.Tensor
+    logits: torch.Tensor
+    value: torch.Tensor
+
+
+class EgoStack(TorchRLModule):
+    """K replicas' task modules and H heads each, stacked (see the module docstring).
+
+    `model_config`: `replicas` (K), `heads` (H), `task` and `head` (the plain modules'
+    model configs, e.g. sizes and `oracle`/`use_task_logits`), `task_seeds` ([K] init
+    seeds), `head_seeds` ([K][H] init seeds), `sample_seeds` ([K]: the generator each
+    replica's exploration draws its actions from).
+    """
+
+    def setup(self) -> None:
+        cfg = self.model_config
+        self.replicas, self.heads = int(cfg["replicas"]), int(cfg["heads"])
+        task_cfg, head_cfg = dict(cfg["task"]), dict(cfg["head"])
+        self.use_task_logits = bool(head_cfg.get("use_task_logits", True))
+        self._oracle = oracle_for(task_cfg["oracle"]["env"], task_cfg["oracle"].get("env_config", {})) if task_cfg.get("oracle") else None
+        self.samplers = [torch.Generator().manual_seed(int(seed)) for seed in cfg["sample_seeds"]]
+        tasks = [self._plain(TaskModule, {**task_cfg, "init_seed": seed}) for seed in cfg["task_seeds"]]
+        heads = [[self._plain(PartnerHeadModule, {**head_cfg, "init_seed": seed}) for seed in row] for row in cfg["head_seeds"]]
+        for layer in (*TASK_POLICY, TASK_LOGITS_LAYER, *TASK_VALUE):
+            for part in ("weight", "bias"):
+                value = torch.stack([t.state_dict()[f"{layer}.{part}"] for t in tasks])
+                self.register_parameter(_name("task", layer, part), nn.Parameter(value))
+        for kind, layers in (("head_pi", HEAD_POLICY), ("head_vf", HEAD_VALUE)):
+            for layer in layers:
+                for part in ("weight", "bias"):
+                    key = f"{layer}.{part}"
+                    value = torch.stack([torch.stack([h.state_dict()[key] for h in row]) for row in heads])
+                    self.register_parameter(_name(kind, layer, part), nn.Parameter(value))
+
+    def _plain(self, cls: type, model_config: dict[str, Any]) -> Any:
+        """A freshly built plain module (its weights initialised from its own seed)."""
+        return cls(observation_space=self.observation_space, action_space=self.action_space, model_config=model_config)
+
+    # --- parameters by role (freezing, learning rates, clipping) ---------------------------------------
+
+    def task_parameters(self, z_only: bool = False) -> list[nn.Parameter]:
+        """The task modules' stacked parameters ([K, ...]); `z_only`: just the policy tower's (the layers making z)."""
+        layers = TASK_POLICY if z_only else (*TASK_POLICY, TASK_LOGITS_LAYER, *TASK_VALUE)
+        return [getattr(self, _name("task", layer, part)) for layer in layers for part in ("weight", "bias")]
+
+    def head_parameters(self) -> list[nn.Parameter]:
+        """The heads' stacked parameters ([K, H, ...])."""
+        return [getattr(self, _name(kind, layer, part)) for kind, layers in (("head_pi", HEAD_POLICY), ("head_vf", HEAD_VALUE)) for layer in layers for part in ("weight", "bias")]
+
+    # --- one replica's weights under the plain modules' names ---------------------------------------------
+
+    def task_state(self, replica: int) -> dict[str, torch.Tensor]:
+        """Replica `replica`'s task module weights, as a `TaskModule` state dict."""
+        return {f"{layer}.{part}": getattr(self, _name("task", layer, part))[replica].detach().clone() for layer in (*TASK_POLICY, TASK_LOGITS_LAYER, *TASK_VALUE) for part in ("weight", "bias")}
+
+    def head_state(self, replica: int, head: int) -> dict[str, torch.Tensor]:
+        """Head `head` of replica `replica`, as a `PartnerHeadModule` state dict."""
+        return {
+            f"{layer}.{part}": getattr(self, _name(kind, layer, part))[replica, head].detach().clone()
+            for kind, layers in (("head_pi", HEAD_POLICY), ("head_vf", HEAD_VALUE))
+            for layer in layers
+            for part in ("weight", "bias")
+        }
+
+    @torch.no_grad()
+    def load_task(self, replica: int, state: dict[str, torch.Tensor]) -> None:
+        """Write a `TaskModule` state dict into replica `replica`'s task module (in place: optimizers keep their tensors)."""
+        for layer in (*TASK_POLICY, TASK_LOGITS_LAYER, *TASK_VALUE):
+            for part in ("weight", "bias"):
+                getattr(self, _name("task", layer, part))[replica].copy_(state[f"{layer}.{part}"])
+
+    @torch.no_grad()
+    def load_head(self, replica: int, head: int, state: dict[str, torch.Tensor]) -> None:
+        """Write a `PartnerHeadModule` state dict into head `head` of replica `replica` (in place)."""
+        for kind, layers in (("head_pi", HEAD_POLICY), ("head_vf", HEAD_VALUE)):
+            for layer in layers:
+                for part in ("weight", "bias"):
+                    getattr(self, _name(kind, layer, part))[replica, head].copy_(state[f"{layer}.{part}"])
+
+    # --- batched forward passes ----------------------------------------------------------------------------
+
+    def task_forward(self, obs: torch.Tensor, mask: torch.Tensor | None, replicas: torch.Tensor | None = None) -> StackedTask:
+        """Task modules on rows: obs [G, N, d], mask [G, N, A] -> z [G, N, z], logits [G, N, A], value [G, N].
+
+        Group g runs replica `replicas[g]`'s task module (default: all K replicas, in order).
+        """
+
+        def p(layer: str, part: str) -> torch.Tensor:
+            t = getattr(self, _name("task", layer, part))
+            return t if replicas is None else t.index_select(0, replicas)
+
+        h = obs
+        for layer in TASK_POLICY:
+            h = torch.relu(_linear(h, p(layer, "weight"), p(layer, "bias")))
+        z = h
+        if self._oracle is not None:
+            flat = obs.detach().reshape(-1, obs.shape[-1]).cpu().numpy()
+            optimal = torch.as_tensor(self._oracle(flat), device=obs.device).reshape(*obs.shape[:-1], -1)
+            logits = torch.clamp(torch.log(optimal), min=torch.finfo(obs.dtype).min)
+        else:
+            logits = _linear(z, p(TASK_LOGITS_LAYER, "weight"), p(TASK_LOGITS_LAYER, "bias"))
+        v = obs
+        for i, layer in enumerate(TASK_VALUE):
+            v = _linear(v, p(layer, "weight"), p(layer, "bias"))
+            if i < len(TASK_VALUE) - 1:
+                v = torch.relu(v)
+        return StackedTask(z, masked_logits(logits, mask), v.squeeze(-1))
+
+    def _heads(self, kind: str, layers: tuple[str, ...], z: torch.Tensor, heads: torch.Tensor | None = None) -> torch.Tensor:
+        """Head MLPs `kind` on z [K*H or G, M, z]; `heads` [G] picks which (replica*H + head) each group is (default: all, in order)."""
+        x = z
+        for i, layer in enumerate(layers):
+            w, b = getattr(self, _name(kind, layer, "weight")), getattr(self, _name(kind, layer, "bias"))
+            w, b = w.reshape(-1, *w.shape[2:]), b.reshape(-1, *b.shape[2:])
+            if heads is not None:
+                w, b = w.index_select(0, heads), b.index_select(0, heads)
+            x = _linear(x, w, b)
+            if i < len(layers) - 1:
+                x = torch.relu(x)
+        return x
+
+    def head_outputs(self, z: torch.Tensor) -> torch.Tensor:
+        """Every head's own output on every row of its replica: z [K, N, z] -> [K, H, N, A] (before the task logits are added)."""
+        k, n, d = z.shape
+        zz = z.unsqueeze(1).expand(k, self.heads, n, d).reshape(k * self.heads, n, d)
+        return self._heads("head_pi", HEAD_POLICY, zz).reshape(k, self.heads, n, -1)
+
+    def head_values(self, z: torch.Tensor, heads: torch.Tensor | None = None) -> torch.Tensor:
+        """Head values on rows z [G, M, z] (group g = head `heads[g]`; default all K*H heads in order) -> [G, M]."""
+        return self._heads("head_vf", HEAD_VALUE, z, heads).squeeze(-1)
+
+    def policy_logits(self, head_out: torch.Tensor, task_logits: torch.Tensor, mask: torch.Tensor | None) -> torch.Tensor:
+        """The ego's masked policy logits from a head's output and the task logits (BaselineModular: the head's alone)."""
+        return masked_logits(task_logits + head_out if self.use_task_logits else head_out, mask)
+
+    def _forward(self, batch: dict[str, Any], **kwargs: Any) -> dict[str, Any]:
+        raise RuntimeError("the ego stack has no agent of its own; its heads act through their HeadView modules")
+
+
+def pad_rows(parts: list[torch.Tensor]) -> tuple[torch.Tensor, list[int]]:
+    """Stack row blocks of different lengths into [G, max rows, ...] (zero rows at the end); return it and the lengths."""
+    sizes = [len(p) for p in parts]
+    longest = max(sizes) if sizes else 0
+    out = parts[0].new_zeros((len(parts), longest, *parts[0].shape[1:]))
+    for i, p in enumerate(parts):
+        out[i, : len(p)] = p
+    return out, sizes
+
+
+def unpad(stacked: torch.Tensor, sizes: list[int]) -> list[torch.Tensor]:
+    """The inverse of `pad_rows` for its output's leading two dims."""
+    return [stacked[i, :n] for i, n in enumerate(sizes)]

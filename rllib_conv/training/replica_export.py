@@ -1,0 +1,72 @@
+"""Write one replica of a packed algorithm as an ordinary trained ego: its own folder, unsuffixed modules, sealed.
+
+Everything that reads a trained ego back (adaptation, zero-shot, marginals, the web app,
+`rllib-conv pair`) reads a trial folder holding `config.yaml`, `eval.json`, `progress.csv`
+and `checkpoint_000000/learner_group/learner/rl_module/{task, ego@..., partner@...}`.
+A replica's weights are slices of the algorithm's `EgoStack`; its export holds them in plain
+modules under their plain IDs, a `ConventionMultiRLModule` checkpoint of their own, written
+to a temporary folder and moved into place only when complete.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+import torch
+import yaml
+from ray.rllib.core.rl_module.multi_rl_module import MultiRLModuleSpec
+
+from rllib_conv.common.run_folders import CHECKPOINT_PREFIX, CONFIG_FILE, EVAL_FILE, PROGRESS_FILES, RL_MODULE_DIR
+from rllib_conv.common.sealed import seal
+from rllib_conv.modules.multi import TASK_ID, ConventionMultiRLModule
+from rllib_conv.modules.stacked_multi import STACK_ID
+from rllib_conv.training.algorithm import Replica, module_specs
+
+EXPORT_CHECKPOINT = f"{CHECKPOINT_PREFIX}000000"
+
+
+def replica_module(module: Any, index: int, replica: Replica) -> ConventionMultiRLModule:
+    """A `ConventionMultiRLModule` under plain IDs holding the current weights of replica `index` of `module` (a stacked ego)."""
+    plain = MultiRLModuleSpec(multi_rl_module_class=ConventionMultiRLModule, rl_module_specs=module_specs(replica.setup, seed=replica.own_seed)).build()
+    return copy_replica(module, index, replica, plain)
+
+
+def copy_replica(module: Any, index: int, replica: Replica, plain: ConventionMultiRLModule) -> ConventionMultiRLModule:
+    """Write replica `index`'s current weights from `module` (a stacked ego) into `plain` (built by `replica_module`); return it."""
+    stack = module[STACK_ID]
+    with torch.no_grad():
+        plain[TASK_ID].load_state_dict(stack.task_state(index))
+        for h, mid in enumerate(replica.setup.head_ids):
+            plain[mid].load_state_dict(stack.head_state(index, h))
+    return plain
+
+
+def export_replica(plain: ConventionMultiRLModule, replica: Replica, folder: Path, evaluation: dict[str, Any], progress: list[dict[str, Any]]) -> Path:
+    """Write a replica (`plain`: its modules from `replica_module`) as a trained-ego trial folder at `folder`; return it.
+
+    An existing complete export (a resumed trial re-running its last iteration) is left as
+    it is: a deterministic resume would write the same files.
+    """
+    if (folder / EVAL_FILE).is_file():
+        return folder
+    folder.parent.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", dir=folder.parent))
+    try:
+        (staging / CONFIG_FILE).write_text(yaml.safe_dump(replica.setup.exp.model_dump(), sort_keys=False))
+        pd.DataFrame(progress).to_csv(staging / PROGRESS_FILES[0], index=False)
+        checkpoint = staging / EXPORT_CHECKPOINT
+        plain.save_to_path(checkpoint / RL_MODULE_DIR)
+        seal(checkpoint)
+        # Last: a folder with eval.json is a finished ego (readers skip unfinished ones).
+        (staging / EVAL_FILE).write_text(json.dumps(evaluation, indent=2) + "\n")
+        if folder.exists():
+            shutil.rmtree(folder)
+        staging.rename(folder)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+    return folder

@@ -1,0 +1,104 @@
+"""`reproduce` killed with SIGKILL in the middle of its train stage, and again in its adapt stage, then run again:
+it finishes without re-running a finished trial or pack, and its results and report equal an uninterrupted run's."""
+
+from __future__ import annotations
+
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import pandas as pd
+import yaml
+
+from rllib_conv.common.resources import config_file
+from tests.sweeps.killing import kill_ray_instance, private_ray_tmp
+
+
+def _plan(tmp_path: Path) -> Path:
+    """The quick bandit plan, adapting to two test partners for the full 240 steps, so each stage lasts long enough to be killed in."""
+    plan = yaml.safe_load(config_file("plan_bandit.yaml").read_text())
+    plan["quick"].update({"adapt_partners": 2, "adapt_overrides": {"steps": 240, "episodes": 50}, "zeroshot_populations": []})
+    path = tmp_path / "plan.yaml"
+    path.write_text(yaml.safe_dump(plan, sort_keys=False))
+    return path
+
+
+def _start(plan: Path, out: Path, ray_tmp: str) -> subprocess.Popen:
+    env = {**os.environ, "RAY_TMPDIR": ray_tmp, "OMP_NUM_THREADS": "1", "RAY_ADDRESS": ""}
+    cmd = [sys.executable, "-m", "rllib_conv.cli", "reproduce", "bandit", "--quick", "--plan", str(plan), "--out", str(out)]
+    return subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, start_new_session=True)
+
+
+def _finish(proc: subprocess.Popen, ray_tmp: str) -> str:
+    out, _ = proc.communicate(timeout=900)
+    kill_ray_instance(ray_tmp)
+    assert proc.returncode == 0, out.decode()[-4000:]
+    return out.decode()
+
+
+def _kill_when(proc: subprocess.Popen, ray_tmp: str, ready: Callable[[], bool], what: str) -> None:
+    deadline = time.time() + 600
+    while time.time() < deadline and proc.poll() is None and not ready():
+        time.sleep(0.05)
+    assert proc.poll() is None and ready(), f"the run should still be {what} when killed"
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+    kill_ray_instance(ray_tmp)
+
+
+def _finished_units(game: Path) -> dict[Path, float]:
+    """Every finished trained ego (eval.json) and adaptation pack (curves.csv), with the time it was written."""
+    files = [*game.glob("runs/*__*/*/seed=*/eval.json"), *game.glob("runs/adapt-stage-*/*/curves.csv")]
+    return {f: f.stat().st_mtime_ns for f in files}
+
+
+def _results(root: Path) -> dict[str, pd.DataFrame]:
+    game = root / "bandit"
+    files = [*sorted((game / "adaptation").glob("*.csv")), game / "marginals.csv"]
+    return {f.name: pd.read_csv(f).assign(run=lambda t: t["run"].str.replace(str(root), "ROOT")) for f in files}
+
+
+def _report(root: Path) -> str:
+    text = (root / "report" / "report.md").read_text().replace(str(root), "ROOT")
+    text = re.sub(r"^Built by .*$", "", text, flags=re.M)
+    return re.sub(r"\(\d+ s\)", "(_ s)", text)  # stage wall times
+
+
+def test_reproduce_killed_in_train_and_in_adapt_finishes_as_an_uninterrupted_run(tmp_path) -> None:
+    plan = _plan(tmp_path)
+    reference, ray_a = tmp_path / "reference", private_ray_tmp()
+    _finish(_start(plan, reference, ray_a), ray_a)
+
+    killed = tmp_path / "killed"
+    game = killed / "bandit"
+    ray_b = private_ray_tmp()
+    proc = _start(plan, killed, ray_b)
+    # Train: some egos finished, the stage not.
+    _kill_when(proc, ray_b, lambda: any(game.glob("runs/*__*/*/seed=*/eval.json")) and not (game / "train.done").exists(), "training")
+    after_train_kill = _finished_units(game)
+
+    ray_c = private_ray_tmp()
+    proc = _start(plan, killed, ray_c)
+    # Adapt: training done, some packs finished, the stage not.
+    _kill_when(proc, ray_c, lambda: any(game.glob("runs/adapt-stage-*/*/curves.csv")) and not (game / "adapt.done").exists(), "adapting")
+    after_adapt_kill = _finished_units(game)
+    assert set(after_train_kill) < set(after_adapt_kill)
+
+    ray_d = private_ray_tmp()
+    log = _finish(_start(plan, killed, ray_d), ray_d)
+    assert "[bandit] train: done before, skipped" in log
+    final = _finished_units(game)
+    # Nothing finished before a kill ran again: its files were not rewritten.
+    rewritten = [str(f.relative_to(game)) for f, t in after_adapt_kill.items() if final[f] != t]
+    assert not rewritten
+
+    ours, theirs = _results(killed), _results(reference)
+    assert ours.keys() == theirs.keys() and len(ours) >= 4
+    for name, table in theirs.items():
+        pd.testing.assert_frame_equal(ours[name], table, rtol=1e-6, atol=1e-7, obj=name)
+    assert _report(killed) == _report(reference)
