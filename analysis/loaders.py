@@ -329,8 +329,8 @@ def read_stage_csv(path: str | Path, game: str = "") -> pd.DataFrame:
     table.insert(0, "population", population)
     table.insert(0, "game", game)
     # The run paths are absolute on the machine that ran them; the trial folder name is portable.
-    table["trial"] = [Path(str(r)).name for r in table["run"]]
-    table["experiment"] = [Path(str(r)).parent.name for r in table["run"]]
+    table["trial"] = [trial_name(str(r)) for r in table["run"]]
+    table["experiment"] = [experiment_of(str(r)).name for r in table["run"]]
     if "exact_return" not in table.columns:
         table["exact_return"] = float("nan")
     return table
@@ -392,11 +392,10 @@ def load_marginals(root: str | Path) -> pd.DataFrame:
         if table.empty:
             continue
         table.insert(0, "game", game_of(game_dir))
-        experiments = table["experiment"] if "experiment" in table.columns else [Path(str(r)).parent.name for r in table["run"]]
-        table["experiment"] = list(experiments)
+        table["experiment"] = [experiment_of(str(r)).name for r in table["run"]]  # from the path: replica folders sit a level deeper
         table["population"] = [split_experiment(e)[0] for e in table["experiment"]]
         table["label"] = [split_experiment(e)[1] for e in table["experiment"]]
-        table["trial"] = [Path(str(r)).name for r in table["run"]]
+        table["trial"] = [trial_name(str(r)) for r in table["run"]]
         frames.append(table)
     out = _concat(frames, MARGINAL_COLUMNS)
     return out[[c for c in MARGINAL_COLUMNS if c in out.columns] + [c for c in out.columns if c not in MARGINAL_COLUMNS]]

@@ -1,10 +1,11 @@
-"""The paper's headline numbers from a `rllib-conv reproduce` folder, with 95% intervals, as one table and JSON.
+"""The paper's headline numbers from a `rllib-conv reproduce` folder, with seed-level 95% intervals, as one table and JSON.
 
 Reads only files (through `analysis.loaders`): per population and method the env steps
 its egos trained for; the adaptation AUC (mean return over the evaluation points, per
 (seed, test partner) curve), on the bandit beside the Bayes-optimal adapter's AUC at the
 same points (`analysis.summaries.bayes_optimal_return`); the zero-shot return; the
-marginal distance.
+marginal distance. Intervals are the report's: each seed's mean over its test partners,
+then a t-interval over seeds (`analysis.summaries.seed_summary`; n = seeds).
 Writes `benchmarks/results/reproduce_<name>.json` with the reproduce command recorded in
 the folder's plan.json.
 
@@ -24,14 +25,16 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import write_result  # noqa: E402
 
 from analysis import loaders  # noqa: E402
-from analysis.summaries import adaptation_auc, bayes_optimal_return, mean_ci  # noqa: E402
+from analysis.summaries import adaptation_auc, bayes_optimal_return, seed_summary  # noqa: E402
 
 BANDIT_CONTEXTS = 4
+BY = ["population", "label"]
 
 
-def _ci(values: pd.Series) -> dict:
-    mean, lo, hi, n = mean_ci(values)
-    return {"mean": mean, "lo": lo, "hi": hi, "n": n}
+def _cis(df: pd.DataFrame, value: str) -> dict[tuple[str, str], dict]:
+    """Per (population, label): the seed-level mean, 95% interval and seed count of `value`."""
+    table = seed_summary(df, BY, value)
+    return {(r.population, r.label): {"mean": r.mean, "lo": r.lo, "hi": r.hi, "n": int(r.n)} for r in table.itertuples()}
 
 
 def _bayes_auc(population: str, steps: list[int]) -> float | None:
@@ -52,8 +55,9 @@ def summary(root: Path) -> dict:
     curves = loaders.load_adaptation(root)
     if not curves.empty:
         aucs = adaptation_auc(curves)
-        for (population, label), group in aucs.groupby(["population", "label"]):
-            row = {"population": population, "method": label, "auc": _ci(group["auc"]), "start": _ci(group["start"]), "end": _ci(group["end"])}
+        cis = {key: _cis(aucs, key) for key in ("auc", "start", "end")}
+        for population, label in sorted(cis["auc"]):
+            row = {"population": population, "method": label, **{key: cis[key][(population, label)] for key in cis}}
             steps = sorted(curves.loc[(curves["population"] == population) & (curves["label"] == label), "steps"].unique().tolist())
             bayes = _bayes_auc(population, steps)
             if bayes is not None:
@@ -63,13 +67,13 @@ def summary(root: Path) -> dict:
     zeroshot = loaders.load_zeroshot(root)
     if not zeroshot.empty:
         value = "exact_return" if zeroshot["exact_return"].notna().all() else "mean_return"
-        for (population, label), group in zeroshot.groupby(["population", "label"]):
-            out["zeroshot"].append({"population": population, "method": label, "return": _ci(group[value])})
+        for (population, label), ci in _cis(zeroshot, value).items():
+            out["zeroshot"].append({"population": population, "method": label, "return": ci})
     marginals = loaders.load_marginals(root)
     if not marginals.empty:
         # By label, not (method, lam): low-dimensional z at lam 0.5 is a different ego from modular at lam 0.5.
-        for (population, label), group in marginals.groupby(["population", "label"]):
-            out["marginals"].append({"population": population, "method": label, "distance": _ci(group["distance"])})
+        for (population, label), ci in _cis(marginals, "distance").items():
+            out["marginals"].append({"population": population, "method": label, "distance": ci})
     return out
 
 

@@ -27,6 +27,8 @@ from typing import Any, Callable, Iterator, NoReturn, Sequence
 
 import yaml
 
+from rllib_conv.common.tracking import DEFAULT_LOGGERS, LOGGERS
+
 EXIT_USAGE = 2
 EXIT_INTERRUPTED = 130
 MAX_PORT = 65535
@@ -401,7 +403,7 @@ def _cmd_train(args: argparse.Namespace) -> None:
     _note_reuse(folder, raw, egos=len(variants))
     from rllib_conv.pipelines.train import run
 
-    results = run(raw, storage=args.storage, address=args.address, progress="table" if sweep else "lines", resume=sweep and args.resume)
+    results = run(raw, storage=args.storage, address=args.address, progress="table" if sweep else "lines", resume=sweep and args.resume, loggers=args.log)
     rows = []
     for r in results:
         m = r.metrics or {}
@@ -428,7 +430,7 @@ def _cmd_partners_train(args: argparse.Namespace) -> None:
         raise ValueError(f"population folder {str(target)!r} already exists; choose another name or pass --overwrite")
     from rllib_conv.pipelines.selfplay import train_population
 
-    population, report = train_population(raw, out=args.out, storage=args.storage, address=args.address, overwrite=args.overwrite)
+    population, report = train_population(raw, out=args.out, storage=args.storage, address=args.address, overwrite=args.overwrite, loggers=args.log)
     print(_table(report))
     failed = report.loc[~report["passed"].astype(bool), "partner"].tolist()
     if failed:
@@ -485,7 +487,7 @@ def _cmd_adapt(args: argparse.Namespace) -> None:
     _note_reuse(Path(args.storage) / f"{ADAPT_PREFIX}{name}", raw)
     from rllib_conv.pipelines.adapt import run_adaptation
 
-    curves = run_adaptation(raw, out=args.out, storage=args.storage, address=args.address)
+    curves = run_adaptation(raw, out=args.out, storage=args.storage, address=args.address, loggers=args.log)
     print("mean over partners and seeds, by env steps:")
     print(_table(adapt_summary(curves)))
     _wrote_with_figures(Path(args.out) / f"{name}.csv")
@@ -505,7 +507,7 @@ def _cmd_zeroshot(args: argparse.Namespace) -> None:
     _note_reuse(Path(args.storage) / f"{ZEROSHOT_PREFIX}{name}", raw)
     from rllib_conv.pipelines.zeroshot import run_zeroshot
 
-    table = run_zeroshot(raw, out=args.out, storage=args.storage, address=args.address)
+    table = run_zeroshot(raw, out=args.out, storage=args.storage, address=args.address, loggers=args.log)
     print(_table(table.drop(columns=["run"])))
     _wrote_with_figures(Path(args.out) / f"{name}.csv")
 
@@ -591,7 +593,7 @@ def _cmd_reproduce(args: argparse.Namespace) -> None:
 
     reproduce(
         args.game, out=args.out, seeds=args.seeds, quick=args.quick, address=args.address, populations=args.populations,
-        methods=args.methods, redo=args.redo, train_steps=args.train_steps, plan_file=args.plan,
+        methods=args.methods, redo=args.redo, train_steps=args.train_steps, plan_file=args.plan, loggers=args.log,
     )
     print(stage_table(args.out).to_string(index=False))
     print(f"wrote {build_report(args.out)}")
@@ -639,6 +641,15 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--address", default=None, help="Ray cluster address (auto or HOST:PORT); default: $RAY_ADDRESS or a local Ray")
 
 
+def _add_log_arg(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--log", nargs="+", choices=LOGGERS, default=list(DEFAULT_LOGGERS), metavar="TRACKER",
+        help="experiment tracking: tensorboard (event files in every trial folder, always written), wandb (offline "
+        "unless $WANDB_MODE says otherwise; files in the experiment folder's wandb/), mlflow (a local store in its mlruns/); "
+        "wandb and mlflow need pip install 'rllib-conv[tracking]' (default: tensorboard)",
+    )
+
+
 def _add_runs_args(p: argparse.ArgumentParser, out: str, what: str) -> None:
     """RUNS, and the name and folder of the CSV a command writes after them."""
     p.add_argument("runs", nargs="+", metavar="RUNS", help="trained-ego trial folders or experiment folders")
@@ -666,6 +677,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = command("train", "train egos from an experiment YAML through Ray Tune", _cmd_train)
     p.add_argument("config", help="experiment YAML (see tune_configs/); results go to STORAGE/NAME/")
     _add_run_args(p)
+    _add_log_arg(p)
 
     p = command(
         "sweep",
@@ -680,6 +692,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("config", help="experiment YAML with grid_search values (see tune_configs/)")
     p.add_argument("--resume", action="store_true", help="continue the sweep in STORAGE/NAME (an error if there is none)")
     _add_run_args(p)
+    _add_log_arg(p)
 
     command("envs", "list the registered games", _cmd_envs)
 
@@ -694,6 +707,7 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--out", default="populations", help="folder for the population (default: populations)")
     q.add_argument("--overwrite", action="store_true", help="replace an existing population of the same name")
     _add_run_args(q)
+    _add_log_arg(q)
 
     p = command(
         "adapt", "adapt trained egos to new partners (fresh head, task module kept, lam 0)", _cmd_adapt,
@@ -711,6 +725,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--pick-steps", type=_positive_int, help="env steps spent picking the head (default: one update's worth)")
     _add_run_args(p)
+    _add_log_arg(p)
 
     p = command(
         "zeroshot", "zero-shot coordination on the new task with known partners", _cmd_zeroshot,
@@ -720,6 +735,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--new-task", action="store_true", help="the new task is each run's population's -newtask variant (what happens without --new-population)")
     p.add_argument("--new-population", help="population of the same partners on the new task (default: POPULATION-newtask)")
     _add_run_args(p)
+    _add_log_arg(p)
 
     p = command("marginals", "distance of each run's task module to the true marginals", _cmd_marginals)
     _add_runs_args(p, "marginals", "")
@@ -760,6 +776,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="a plan YAML to run instead of the shipped tune_configs/plan_GAME.yaml (copy and edit that file)",
     )
     p.add_argument("--address", default=None, help="Ray cluster address; default: $RAY_ADDRESS or a local Ray")
+    _add_log_arg(p)
 
     from rllib_conv.play import command as play_command  # stdlib-only: the server loads when `play` runs
 

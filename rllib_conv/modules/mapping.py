@@ -1,8 +1,9 @@
-"""Agent -> module mapping: every episode is played with one partner, partners in turn.
+"""Agent -> module mapping: every episode is played with one partner, chosen by a `partner_schedule`.
 
 In a `ReplicatedGame` the agents carry their replica (`player_0#2`) and map to that
-replica's modules (`ego@p#2`, `partner@p#2`); every replica counts episodes the same way,
-so each pairs its episodes with its partners exactly as it would alone.
+replica's modules (`ego@p#2`, `partner@p#2`); every replica counts episodes the same way
+and draws from its own generator, so each pairs its episodes with its partners exactly as
+it would alone.
 """
 
 from __future__ import annotations
@@ -11,21 +12,28 @@ from collections import OrderedDict
 from typing import Any
 
 from rllib_conv.modules.multi import AGG_HEAD_ID, REPLICA_SEPARATOR, ego_id, partner_id, replica_id
+from rllib_conv.modules.partner_schedule import RoundRobin
 
 _CACHE = 4096
 
 
 class PartnerMapping:
-    """Policy-mapping function pairing each episode with one partner, round robin.
+    """Policy-mapping function pairing each episode with one partner (`schedule`; default round robin).
 
     The ego agent maps to its head for that partner (or to the single `ego` head when
     `shared_head`, i.e. BaselineAgg) and the partner agent to the partner's module.
-    Episodes are assigned in the order an env runner first sees them, so episodes are
-    spread evenly over partners and the assignment is reproducible.
+    Episodes are numbered in the order an env runner first sees them, so the assignment is
+    reproducible (round robin spreads them evenly over partners).
     """
 
     def __init__(
-        self, partners: list[str], ego_agent: str, partner_agent: str, shared_head: bool = False, replica_partners: list[list[str]] | None = None
+        self,
+        partners: list[str],
+        ego_agent: str,
+        partner_agent: str,
+        shared_head: bool = False,
+        replica_partners: list[list[str]] | None = None,
+        schedule: Any = None,
     ) -> None:
         if not partners or (replica_partners is not None and not all(replica_partners)):
             raise ValueError("PartnerMapping needs at least one partner")
@@ -35,8 +43,9 @@ class PartnerMapping:
         self.ego_agent = ego_agent
         self.partner_agent = partner_agent
         self.shared_head = shared_head
+        self.schedule = schedule or RoundRobin()
         self._next = 0
-        self._assigned: OrderedDict[str, int] = OrderedDict()
+        self._assigned: OrderedDict[str, tuple[int, ...]] = OrderedDict()
         self._focus: int | None = None
 
     def focus(self, partner: str | None) -> None:
@@ -44,25 +53,26 @@ class PartnerMapping:
         self._focus = None if partner is None else self.partners.index(partner)
 
     def get_state(self) -> dict[str, Any]:
-        """The round-robin position and current assignments (saved with checkpoints)."""
-        return {"next": self._next, "assigned": list(self._assigned.items()), "focus": self._focus}
+        """The episode count, current assignments and the schedule's generators (saved with checkpoints)."""
+        return {"next": self._next, "assigned": [[k, list(v)] for k, v in self._assigned.items()], "focus": self._focus, "schedule": self.schedule.get_state()}
 
     def set_state(self, state: dict[str, Any]) -> None:
         """Restore a state from `get_state`."""
         self._next, self._focus = state["next"], state["focus"]
-        self._assigned = OrderedDict(state["assigned"])
+        self._assigned = OrderedDict((k, tuple(v) if isinstance(v, (list, tuple)) else (v,)) for k, v in state["assigned"])
+        self.schedule.set_state(state.get("schedule", {}))
 
-    def partner_for(self, episode_id: str) -> str:
-        """Return the partner assigned to `episode_id`, assigning the next one on first sight."""
-        return self.partners[self._index_for(episode_id)]
+    def _own(self, replica: int | None) -> list[str]:
+        return self.replica_partners[replica] if replica is not None and self.replica_partners is not None else self.partners
 
-    def _index_for(self, episode_id: str) -> int:
-        """The index (into `partners`) assigned to `episode_id`, assigning the next one on first sight."""
+    def _indices_for(self, episode_id: str) -> tuple[int, ...]:
+        """Every replica's partner index for `episode_id` (one entry without replicas), drawn on first sight."""
         if episode_id not in self._assigned:
+            replicas = len(self.replica_partners) if self.replica_partners is not None else 1
             if self._focus is not None:
-                self._assigned[episode_id] = self._focus
+                self._assigned[episode_id] = (self._focus,) * replicas
             else:
-                self._assigned[episode_id] = self._next % len(self.partners)
+                self._assigned[episode_id] = tuple(self.schedule.index(r, self._next, self._own(r if self.replica_partners else None)) for r in range(replicas))
                 self._next += 1
             if len(self._assigned) > _CACHE:
                 self._assigned.popitem(last=False)
@@ -72,9 +82,7 @@ class PartnerMapping:
         agent, sep, tag = agent_id.rpartition(REPLICA_SEPARATOR)
         replica = int(tag) if sep and tag.isdigit() else None
         agent = agent if replica is not None else agent_id
-        index = self._index_for(episode.id_)
-        own = self.replica_partners[replica] if replica is not None and self.replica_partners is not None else self.partners
-        name = own[index % len(own)]
+        name = self._own(replica)[self._indices_for(episode.id_)[replica or 0]]
         if agent == self.ego_agent:
             return replica_id(AGG_HEAD_ID if self.shared_head else ego_id(name), replica)
         if agent == self.partner_agent:

@@ -22,6 +22,7 @@ z_dim, seed, partner, steps, mean_return, stderr, exact_return (one-step games o
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -47,6 +48,7 @@ from rllib_conv.training.head_pick import HeadPick, pick_head
 from rllib_conv.training.packs import cluster_cpus, packs, write_tables
 from rllib_conv.training.replica_export import copy_replica, replica_module
 from rllib_conv.training.replica_steps import is_parallel, replica_env_steps
+from rllib_conv.training.settings import MappingSettings
 from rllib_conv.training.trainable import AlgorithmTrainable
 from rllib_conv.training.tuning import fit, job_param_space, spec_name
 from rllib_conv.training.weights import learner_module, push_learner_weights
@@ -99,6 +101,7 @@ def adapt_curve(cfg: AdaptConfig, run: str, partner: str) -> Curve:
             "freeze": [] if cfg.train_task else ["task"],
             "ppo": type(trained.ppo).model_validate(ppo),
             "env_config": {**pop.env_config},
+            "mapping": MappingSettings(),  # one partner: the training run's mapping does not apply
         }
     )
     checkpoint = last_checkpoint(trial) / RL_MODULE_DIR
@@ -247,7 +250,12 @@ def pack_curves(cfg: AdaptConfig, pairs: list[dict[str, str]], cpus: int, stage_
 
 
 def run_adaptations(
-    raws: list[dict[str, Any]], out: str | Path = "adaptation", storage: str | Path = "runs", address: str | None = None, label: str | None = None
+    raws: list[dict[str, Any]],
+    out: str | Path = "adaptation",
+    storage: str | Path = "runs",
+    address: str | None = None,
+    label: str | None = None,
+    loggers: Sequence[str] = (),
 ) -> dict[str, pd.DataFrame]:
     """Adapt every run of every adapt config in `raws` in one Tune run; write and return each config's curves CSV by name.
 
@@ -268,10 +276,12 @@ def run_adaptations(
     spec: Any = raws[0] if len(raws) == 1 else {"experiments": names, "configs": raws}
     name = f"{ADAPT_PREFIX}{cfgs[0].name}" if len(raws) == 1 else spec_name(STAGE_PREFIX, spec)
     progress = StageProgress(label) if label else "lines"
-    results = fit(AdaptTrainable, spec, job_param_space(jobs), name, storage, address, tune.CheckpointConfig(checkpoint_at_end=False), progress)
+    results = fit(AdaptTrainable, spec, job_param_space(jobs), name, storage, address, tune.CheckpointConfig(checkpoint_at_end=False), progress, loggers=loggers)
     return write_tables(results, cfgs, CURVES_FILE, CURVE_COLUMNS, ["run", "partner", "steps"], Path(out), "adaptation")
 
 
-def run_adaptation(raw: dict[str, Any], out: str | Path = "adaptation", storage: str | Path = "runs", address: str | None = None) -> pd.DataFrame:
+def run_adaptation(
+    raw: dict[str, Any], out: str | Path = "adaptation", storage: str | Path = "runs", address: str | None = None, loggers: Sequence[str] = ()
+) -> pd.DataFrame:
     """Adapt every run in `raw` to every chosen partner; write and return the tidy curves CSV."""
-    return next(iter(run_adaptations([raw], out, storage, address).values()))
+    return next(iter(run_adaptations([raw], out, storage, address, loggers=loggers).values()))

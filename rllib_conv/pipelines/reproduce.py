@@ -35,8 +35,9 @@ from __future__ import annotations
 import json
 import shutil
 import time
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import pandas as pd
 
@@ -94,8 +95,10 @@ def _merge(base: dict[str, Any], extra: dict[str, Any]) -> dict[str, Any]:
 class Reproduction:
     """Runs a `Plan`'s stages under `root`, skipping finished ones."""
 
-    def __init__(self, plan: Plan, root: Path, address: str | None = None, log: Callable[[str], None] = print) -> None:
-        self.plan, self.root, self.address, self.log = plan, root, address, log
+    def __init__(
+        self, plan: Plan, root: Path, address: str | None = None, log: Callable[[str], None] = print, loggers: Sequence[str] = ()
+    ) -> None:
+        self.plan, self.root, self.address, self.log, self.loggers = plan, root, address, log, tuple(loggers)
         self.runs = root / RUNS_DIR
 
     def populations(self) -> dict[str, list[TrainedVariant]]:
@@ -125,7 +128,8 @@ class Reproduction:
                 continue
             base = config_files.load(config_file(f"selfplay_{self.plan.game}.yaml"), schema=SelfPlayConfig)
             raw = config_files.from_dict(_merge(base, overrides), schema=SelfPlayConfig)
-            _, report = train_population(raw, out=self.root / POPULATIONS_DIR, storage=self.runs, address=self.address)
+            label = f"[{self.plan.game}] self-play {overrides['name']}"
+            _, report = train_population(raw, out=self.root / POPULATIONS_DIR, storage=self.runs, address=self.address, label=label, loggers=self.loggers)
             self.log(f"self-play {overrides['name']}: {int(report['passed'].sum())}/{len(report)} pairs passed the gate")
 
     def trained(self) -> list[tuple[str, TrainedVariant]]:
@@ -145,7 +149,7 @@ class Reproduction:
 
     def stage_train(self) -> None:
         raws = [config_files.from_dict(e, schema=ExperimentConfig) for e in self.training()]
-        train_stage(raws, storage=self.runs, address=self.address, label=f"[{self.plan.game}] train")
+        train_stage(raws, storage=self.runs, address=self.address, label=f"[{self.plan.game}] train", loggers=self.loggers)
 
     def stage_adapt(self) -> None:
         raws = []
@@ -161,7 +165,8 @@ class Reproduction:
                 raw = _merge({"name": name, "population": population, "partners": names}, {**self.plan.adapt_overrides, **extra})
                 raws.append(config_files.from_dict(raw, schema=AdaptConfig))
         if raws:
-            run_adaptations(raws, out=self.root / ADAPTATION_DIR, storage=self.runs, address=self.address, label=f"[{self.plan.game}] adapt")
+            label = f"[{self.plan.game}] adapt"
+            run_adaptations(raws, out=self.root / ADAPTATION_DIR, storage=self.runs, address=self.address, label=label, loggers=self.loggers)
 
     def egos(self, experiment: str) -> list[str]:
         """The trained egos of `experiment` with this plan's seeds (a folder may hold more, from a wider earlier plan)."""
@@ -177,7 +182,8 @@ class Reproduction:
                 if not covers(self.root / ZEROSHOT_DIR / f"{name}.csv", runs):
                     raws.append(config_files.from_dict(_merge({"name": name, "runs": runs}, self.plan.zeroshot_overrides), schema=ZeroShotConfig))
         if raws:
-            run_zeroshots(raws, out=self.root / ZEROSHOT_DIR, storage=self.runs, address=self.address, label=f"[{self.plan.game}] zeroshot")
+            label = f"[{self.plan.game}] zeroshot"
+            run_zeroshots(raws, out=self.root / ZEROSHOT_DIR, storage=self.runs, address=self.address, label=label, loggers=self.loggers)
 
     def has_marginals(self, experiment: str) -> bool:
         """Whether the marginals stage measures experiment `<population>__<label>` (see `Plan.no_marginals`)."""
@@ -306,6 +312,7 @@ def reproduce(
     redo: str | None = None,
     train_steps: int | None = None,
     plan_file: str | Path | None = None,
+    loggers: Sequence[str] = (),
 ) -> dict[str, dict[str, float]]:
     """Run `game` (or `all`) under `<out>/<game>/`, each plan optionally `narrow`ed; return the stage wall times per game.
 
@@ -313,6 +320,7 @@ def reproduce(
     `train_steps` replaces every ego's training budget (see `plan_for`); `plan_file` is a plan
     YAML to run instead of the shipped one (one game only). The report over `out` is built
     by `analysis.report.build_report`, which reads these folders (`rllib-conv reproduce` does both).
+    `loggers` adds experiment tracking to every stage's Tune run (`tuning.logger_callbacks`).
     """
     games = GAMES if game == "all" else (game,)
     if plan_file is not None and len(games) > 1:
@@ -320,7 +328,7 @@ def reproduce(
     plans = [narrow(plan_for(g, seeds, quick, train_steps, plan_file), populations, methods) for g in games]  # validate every game before running any
     times = {}
     for plan in plans:
-        repro = Reproduction(plan, Path(out) / plan.game, address)
+        repro = Reproduction(plan, Path(out) / plan.game, address, loggers=loggers)
         if redo is not None:
             repro.redo(redo)
         times[plan.game] = repro.run()

@@ -20,6 +20,7 @@ import math
 import shutil
 import tempfile
 import time
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -48,7 +49,7 @@ from rllib_conv.partners.population import PartnerEntry, Population
 from rllib_conv.partners.trained import PolicyPartner
 from rllib_conv.pipelines.selfplay_config import SelfPlayConfig
 from rllib_conv.training.algorithm import base_ppo_config
-from rllib_conv.training.callbacks import STEPS_DONE, STEPS_TOTAL
+from rllib_conv.training.callbacks import STEPS_DONE, STEPS_TOTAL, StageProgress
 from rllib_conv.training.trainable import AlgorithmTrainable
 from rllib_conv.training.tuning import fit
 
@@ -205,9 +206,18 @@ def write_population(cfg: SelfPlayConfig, results: tune.ResultGrid, folder: Path
 
 
 def train_population(
-    raw: dict[str, Any], out: str | Path = "populations", storage: str | Path = "runs", address: str | None = None, overwrite: bool = False
+    raw: dict[str, Any],
+    out: str | Path = "populations",
+    storage: str | Path = "runs",
+    address: str | None = None,
+    overwrite: bool = False,
+    label: str | None = None,
+    loggers: Sequence[str] = (),
 ) -> tuple[Population, pd.DataFrame]:
     """Train every pair of the self-play config `raw` and write the population to `out/<name>/`.
+
+    `label` prints one progress line for all pairs (`StageProgress`) instead of one per
+    result; `loggers` adds experiment tracking (`tuning.logger_callbacks`).
 
     The population is assembled in a temporary folder and moved into place only when
     complete, so a crash never leaves a half-written population (or replaces an old one).
@@ -219,7 +229,9 @@ def train_population(
         raise ValueError(f"population folder {str(target)!r} already exists; choose another name or pass --overwrite")
     pairs = cfg.train_pairs + cfg.test_pairs
     checkpoint = tune.CheckpointConfig(num_to_keep=1, checkpoint_frequency=cfg.run.checkpoint_every, checkpoint_at_end=True)
-    results = fit(SelfPlayTrainable, raw, {**raw, "pair": tune.grid_search(list(range(pairs)))}, f"{SELFPLAY_PREFIX}{cfg.name}", storage, address, checkpoint)
+    progress = StageProgress(label) if label else "lines"
+    space = {**raw, "pair": tune.grid_search(list(range(pairs)))}
+    results = fit(SelfPlayTrainable, raw, space, f"{SELFPLAY_PREFIX}{cfg.name}", storage, address, checkpoint, progress, loggers=loggers)
     target.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f".{cfg.name}.", dir=target.parent))
     try:

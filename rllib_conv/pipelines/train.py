@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -159,15 +160,21 @@ def replica_param_space(raw: dict[str, Any]) -> dict[str, Any]:
 
 
 def run(
-    raw: dict[str, Any], storage: str | Path = "runs", address: str | None = None, progress: str = "lines", resume: bool = False
+    raw: dict[str, Any],
+    storage: str | Path = "runs",
+    address: str | None = None,
+    progress: str = "lines",
+    resume: bool = False,
+    loggers: Sequence[str] = (),
 ) -> tune.ResultGrid:
     """Run the experiment `raw` (already validated by `experiment.load`) through Tune; return its results.
 
     Results go to `storage/<name>/`, with the experiment's config in `experiment.yaml`;
-    running the same experiment again continues it (see `tuning.fit` for `progress` and `resume`).
+    running the same experiment again continues it (see `tuning.fit` for `progress`,
+    `resume` and `loggers`).
     """
     first = _checked(raw)[0]
-    return fit(EgoTrainable, raw, replica_param_space(raw), first.name, storage, address, _checkpoints(first), progress, resume)
+    return fit(EgoTrainable, raw, replica_param_space(raw), first.name, storage, address, _checkpoints(first), progress, resume, loggers)
 
 
 def _checked(raw: dict[str, Any]) -> list[ExperimentConfig]:
@@ -199,7 +206,9 @@ def _unfinished(job: dict[str, Any]) -> dict[str, Any] | None:
     return {**job, "seed": seeds[0], REPLICA_SEEDS: seeds} if seeds else None
 
 
-def train_stage(raws: list[dict[str, Any]], storage: str | Path, address: str | None = None, label: str = "train") -> list[str]:
+def train_stage(
+    raws: list[dict[str, Any]], storage: str | Path, address: str | None = None, label: str = "train", loggers: Sequence[str] = ()
+) -> list[str]:
     """Train every experiment of `raws` in one Tune run (its trials spread over the cluster); return the experiments trained now.
 
     Each experiment's egos land where `run` puts them, `storage/<name>/<point>/seed=<s>/`,
@@ -221,7 +230,8 @@ def train_stage(raws: list[dict[str, Any]], storage: str | Path, address: str | 
     if not todo:
         return []
     name = spec_name(TRAIN_STAGE_PREFIX, {"experiments": names, "jobs": jobs})
-    results = fit(EgoTrainable, {"experiments": names, "jobs": jobs}, job_param_space(todo), name, storage, address, _checkpoints(first), StageProgress(label))
+    spec = {"experiments": names, "jobs": jobs}
+    results = fit(EgoTrainable, spec, job_param_space(todo), name, storage, address, _checkpoints(first), StageProgress(label), loggers=loggers)
     if results.errors:
         raise RuntimeError(f"{len(results.errors)} training trial(s) failed; see {storage / name}")
     return sorted({Path(job[EXPORT_KEY]).parent.name for job in todo})

@@ -17,6 +17,7 @@ on the bandit, the exact expected return.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -44,6 +45,7 @@ from rllib_conv.training.experiment import ExperimentConfig, trial_config
 from rllib_conv.training.packs import cluster_cpus, packs, write_tables
 from rllib_conv.training.replica_export import replica_module
 from rllib_conv.training.replica_steps import is_parallel, replica_env_steps
+from rllib_conv.training.settings import MappingSettings
 from rllib_conv.training.trainable import AlgorithmTrainable
 from rllib_conv.training.tuning import fit, job_param_space, spec_name
 from rllib_conv.training.weights import learner_module, push_learner_weights
@@ -90,10 +92,12 @@ def step_experiments(trained: ExperimentConfig, cfg: ZeroShotConfig) -> dict[str
         return (trained.lam if lam is None else lam) if methods.method(trained.method).regularised else 0.0
 
     ppo = trained.ppo.model_copy(update={"entropy_coeff": cfg.task_entropy})
+    round_robin = MappingSettings()  # the paper's protocol, whatever mapping the run trained with
     return {
-        "heads": trained.model_copy(update={"lam": weight(cfg.head_lam), "freeze": ["task"]}),
+        "heads": trained.model_copy(update={"lam": weight(cfg.head_lam), "freeze": ["task"], "mapping": round_robin}),
         "task": trained.model_copy(
             update={
+                "mapping": round_robin,
                 "freeze": ["heads"],
                 "ppo": ppo,
                 "env_config": {},
@@ -205,7 +209,12 @@ def reset_logits_state(task_state: dict[str, torch.Tensor], seed: int) -> dict[s
 
 
 def run_zeroshots(
-    raws: list[dict[str, Any]], out: str | Path = "zeroshot", storage: str | Path = "runs", address: str | None = None, label: str | None = None
+    raws: list[dict[str, Any]],
+    out: str | Path = "zeroshot",
+    storage: str | Path = "runs",
+    address: str | None = None,
+    label: str | None = None,
+    loggers: Sequence[str] = (),
 ) -> dict[str, pd.DataFrame]:
     """Run the three steps for every run of every zero-shot config in `raws`, in one Tune run; write and return each config's table by name.
 
@@ -228,10 +237,12 @@ def run_zeroshots(
     spec: Any = raws[0] if len(raws) == 1 else {"experiments": names, "configs": raws}
     name = f"{ZEROSHOT_PREFIX}{cfgs[0].name}" if len(raws) == 1 else spec_name(f"{ZEROSHOT_PREFIX}stage-", spec)
     progress = StageProgress(label) if label else "lines"
-    results = fit(ZeroShotTrainable, spec, job_param_space(jobs), name, storage, address, tune.CheckpointConfig(checkpoint_at_end=False), progress)
+    results = fit(ZeroShotTrainable, spec, job_param_space(jobs), name, storage, address, tune.CheckpointConfig(checkpoint_at_end=False), progress, loggers=loggers)
     return write_tables(results, cfgs, RESULTS_FILE, RESULT_COLUMNS, ["run", "partner"], Path(out), "zero-shot")
 
 
-def run_zeroshot(raw: dict[str, Any], out: str | Path = "zeroshot", storage: str | Path = "runs", address: str | None = None) -> pd.DataFrame:
+def run_zeroshot(
+    raw: dict[str, Any], out: str | Path = "zeroshot", storage: str | Path = "runs", address: str | None = None, loggers: Sequence[str] = ()
+) -> pd.DataFrame:
     """Run the three steps for every run in `raw`; write and return one row per (run, test partner)."""
-    return next(iter(run_zeroshots([raw], out, storage, address).values()))
+    return next(iter(run_zeroshots([raw], out, storage, address, loggers=loggers).values()))

@@ -10,7 +10,7 @@ import numpy as np
 
 from rllib_conv import partners
 from rllib_conv.common.methods import method
-from rllib_conv.common.run_folders import CONFIG_FILE, trial_folders
+from rllib_conv.common.run_folders import CONFIG_FILE, experiment_of, trial_folders, trial_name
 from rllib_conv.modules.multi import AGG_HEAD_ID
 from rllib_conv.partners.population import Population
 from rllib_conv.play.agent import Prior, legal_renormalised
@@ -57,7 +57,7 @@ class EgoRun:
 
     def describe(self) -> str:
         """One line for people: method, lam, population, folder."""
-        return f"{self.exp.method} ego (lam {self.exp.lam:g}) trained with {self.population.name}, {self.trial.name}"
+        return f"{self.exp.method} ego (lam {self.exp.lam:g}) trained with {self.population.name}, {experiment_of(self.trial).name}/{trial_name(self.trial)}"
 
 
 def load_run(path: str | Path, what: str = "RUN") -> EgoRun:

@@ -29,10 +29,11 @@ from rllib_conv.learners.minibatches import module_seed
 from rllib_conv.modules import TASK_ID, FixedPartnerModule, PartnerHeadModule, PartnerMapping, TaskModule, partner_id
 from rllib_conv.modules.ego_stack import EgoStack
 from rllib_conv.modules.multi import replica_id
+from rllib_conv.modules.partner_schedule import PartnerFunction, RoundRobin, WeightedPartners
 from rllib_conv.modules.stacked_multi import STACK_ID, HeadView, StackedEgoMultiRLModule
 from rllib_conv.training.ego_setup import EgoSetup
 from rllib_conv.training.lean_env_runner import LeanEnvRunner
-from rllib_conv.training.settings import PPOSettings, RunSettings
+from rllib_conv.training.settings import MappingSettings, PPOSettings, RunSettings
 from rllib_conv.training.weights import push_learner_weights
 
 # The algorithm's own seed (RLlib's global seeding and sub-environment offsets); every
@@ -55,7 +56,7 @@ class Replica:
 
 
 # What replicas of one algorithm share: they differ in seed, partners and starting weights only.
-PACKED_KEYS = ("method", "lam", "freeze", "z_lr_scale", "head_l2", "model", "ppo", "run", "maml")
+PACKED_KEYS = ("method", "lam", "freeze", "z_lr_scale", "head_l2", "model", "ppo", "run", "maml", "mapping")
 
 
 def packing_key(setup: EgoSetup) -> str:
@@ -202,6 +203,15 @@ def base_ppo_config(env_class: type, env_config: dict, ppo: PPOSettings, run: Ru
     )
 
 
+def partner_schedule(mapping: MappingSettings, seeds: list[int]) -> Any:
+    """The `partner_schedule` of an experiment's `mapping` settings, one generator per replica seeded from `seeds`."""
+    if mapping.kind == "weighted":
+        return WeightedPartners(mapping.weights or {}, seeds)
+    if mapping.kind == "function":
+        return PartnerFunction(mapping.function or "", seeds)
+    return RoundRobin()
+
+
 def build_ppo_config(setup: EgoSetup | list[Replica], load: dict[str, str] | None = None) -> PPOConfig:
     """Return the PPOConfig training one ego (`setup`, starting weights from `load`) or several packed `Replica`s.
 
@@ -219,6 +229,7 @@ def build_ppo_config(setup: EgoSetup | list[Replica], load: dict[str, str] | Non
         first.partner_agent,
         shared_head=method(exp.method).single_head,
         replica_partners=[[e.name for e in rep.setup.train] for rep in replicas],
+        schedule=partner_schedule(exp.mapping, [module_seed(rep.own_seed, "mapping") for rep in replicas]),
     )
     trained = [STACK_ID, *(replica_id(mid, r) for r, rep in enumerate(replicas) for mid in rep.setup.head_ids)]
     settings = exp.learner_settings()

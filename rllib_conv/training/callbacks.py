@@ -29,7 +29,10 @@ class ProgressLine(Callback):
 
     def on_trial_result(self, iteration: int, trials: list, trial: Any, result: dict[str, Any], **info: Any) -> None:
         steps = result.get("env_steps", result.get("steps", 0))
-        parts = [f"[{trial.trial_id}] iter {result.get('training_iteration', 0):4d}", f"steps {steps:8d}"]
+        parts = [f"[{trial.trial_id}] iter {result.get('training_iteration', 0):4d}"]
+        if "phase" in result:  # zero-shot: its steps count from 0 again in each phase
+            parts.append(f"phase {result['phase']}")
+        parts.append(f"steps {steps:8d}")
         for key, label in self.FIELDS:
             value = result.get(key)
             if isinstance(value, (int, float)) and not math.isnan(value):

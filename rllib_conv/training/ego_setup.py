@@ -7,6 +7,7 @@ from dataclasses import dataclass
 from rllib_conv import envs, partners
 from rllib_conv.common.methods import method
 from rllib_conv.modules import AGG_HEAD_ID, ego_id
+from rllib_conv.modules.partner_schedule import load_function
 from rllib_conv.partners.population import PartnerEntry, Population
 from rllib_conv.training.experiment import ExperimentConfig
 
@@ -52,4 +53,18 @@ def setup_for(exp: ExperimentConfig, pop: Population, train: list[PartnerEntry])
     if not train:
         raise ValueError(f"population {pop.name!r} has no partners to train with")
     ego_agent = next(a for a in probe.possible_agents if a != pop.partner_agent)
+    _check_mapping(exp, [e.name for e in train])
     return EgoSetup(exp.resolve(pop.env), pop, env_config, ego_agent, pop.partner_agent, train)
+
+
+def _check_mapping(exp: ExperimentConfig, partners: list[str]) -> None:
+    """The mapping's weights name training partners (and weigh one); its function can be imported."""
+    mapping = exp.mapping
+    if mapping.weights is not None:
+        unknown = sorted(set(mapping.weights) - set(partners))
+        if unknown:
+            raise ValueError(f"mapping.weights: {unknown} are not training partners; they are {partners}")
+        if not any(mapping.weights.get(p, 0.0) > 0 for p in partners):
+            raise ValueError(f"mapping.weights: no training partner has a positive weight ({mapping.weights})")
+    if mapping.function is not None:
+        load_function(mapping.function)

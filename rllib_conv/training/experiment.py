@@ -18,7 +18,15 @@ from rllib_conv.common.methods import MethodName, method
 from rllib_conv.common.run_folders import read_trial_config
 from rllib_conv.envs.defaults import FALLBACK_DEFAULTS, GAME_DEFAULTS
 from rllib_conv.learners.settings import LearnerSettings
-from rllib_conv.training.settings import EnvName, FolderName, MAMLSettings, ModelSettings, PPOSettings, RunSettings
+from rllib_conv.training.settings import (
+    EnvName,
+    FolderName,
+    MAMLSettings,
+    MappingSettings,
+    ModelSettings,
+    PPOSettings,
+    RunSettings,
+)
 
 
 class ExperimentConfig(Strict):
@@ -40,6 +48,7 @@ class ExperimentConfig(Strict):
     ppo: PPOSettings = Field(default_factory=PPOSettings)
     run: RunSettings = Field(default_factory=RunSettings)
     maml: MAMLSettings = Field(default_factory=MAMLSettings)
+    mapping: MappingSettings = Field(default_factory=MappingSettings)
 
     @model_validator(mode="after")
     def _consistent(self) -> "ExperimentConfig":

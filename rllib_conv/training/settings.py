@@ -8,9 +8,9 @@ the game (`rllib_conv.envs.defaults`).
 
 from __future__ import annotations
 
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
-from pydantic import AfterValidator, Field, NonNegativeFloat, NonNegativeInt, PositiveFloat, PositiveInt
+from pydantic import AfterValidator, Field, NonNegativeFloat, NonNegativeInt, PositiveFloat, PositiveInt, model_validator
 
 from rllib_conv.common.config_files import Strict
 from rllib_conv.envs.registry import factory as env_factory
@@ -94,3 +94,28 @@ class MAMLSettings(Strict):
 
     inner_iterations: PositiveInt = 4
     outer_step: float = Field(0.25, gt=0.0, le=1.0)
+
+
+class MappingSettings(Strict):
+    """Which training partner each episode is played with: the choice behind the agent -> module mapping.
+
+    `round_robin` (default, the paper's): partners in turn. `weighted`: each episode's
+    partner drawn with `weights` (partner name -> weight; partners left out get 0), from a
+    generator seeded from the run's seed. `function`: the user's
+    `function(episode, partners, rng) -> partner name`, named by import path
+    (`package.module:function`), importable where the env runners run.
+    """
+
+    kind: Literal["round_robin", "weighted", "function"] = "round_robin"
+    weights: dict[str, NonNegativeFloat] | None = None
+    function: str | None = None
+
+    @model_validator(mode="after")
+    def _consistent(self) -> "MappingSettings":
+        if (self.kind == "weighted") != (self.weights is not None):
+            raise ValueError("mapping.weights is for kind 'weighted', which needs it (partner name -> weight)")
+        if self.weights is not None and sum(self.weights.values()) <= 0:
+            raise ValueError(f"mapping.weights must give some partner a positive weight; got {self.weights}")
+        if (self.kind == "function") != (self.function is not None):
+            raise ValueError("mapping.function is for kind 'function', which needs it ('package.module:function')")
+        return self

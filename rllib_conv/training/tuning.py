@@ -10,6 +10,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -18,13 +19,57 @@ import yaml
 from ray import tune
 from ray.tune import Callback
 from ray.tune.execution.placement_groups import PlacementGroupFactory
+from ray.tune.utils import flatten_dict
 
 from rllib_conv.common.config_files import GRID_KEY
 from rllib_conv.common.run_folders import SPEC_FILE
+from rllib_conv.common.tracking import LOGGERS
 from rllib_conv.training.callbacks import PROGRESS, TrimRerunResults
 
 # A stage's Tune run (`job_param_space`): every trial's config is one job under this key.
 JOB_KEY = "job"
+
+
+def logger_callbacks(loggers: Sequence[str], folder: Path, name: str) -> list[Callback]:
+    """Tune logger callbacks for `loggers` (`rllib_conv.common.tracking.LOGGERS`), writing under the experiment folder `folder`.
+
+    `wandb` runs offline unless $WANDB_MODE says otherwise (files in `folder/wandb/`, to
+    `wandb sync` later); `mlflow` keeps a local file store in `folder/mlruns/`.
+    ValueError for an unknown logger or a missing package.
+    """
+    callbacks: list[Callback] = []
+    for kind in loggers:
+        if kind not in LOGGERS:
+            raise ValueError(f"--log: expected one of {list(LOGGERS)}, got {kind!r}")
+        if kind == "tensorboard":
+            continue
+        try:
+            if kind == "wandb":
+                from ray.air.integrations.wandb import WandbLoggerCallback  # optional dependency (extra 'tracking')
+
+                folder.mkdir(parents=True, exist_ok=True)
+                # Ray asks for an API key unless the environment says offline (or disabled).
+                os.environ.setdefault("WANDB_MODE", "offline")
+                callbacks.append(WandbLoggerCallback(project=name, dir=str(folder), mode=os.environ["WANDB_MODE"]))
+            else:
+                # A file store needs no server or database; MLflow 3 asks for this to allow one.
+                os.environ.setdefault("MLFLOW_ALLOW_FILE_STORE", "true")
+                callbacks.append(_mlflow_logger((folder / "mlruns").resolve().as_uri(), name))
+        except ImportError as exc:
+            raise ValueError(f"--log {kind}: the {kind} package is not installed (pip install 'rllib-conv[tracking]'): {exc}") from None
+    return callbacks
+
+
+def _mlflow_logger(uri: str, name: str) -> Callback:
+    """Tune's MLflow callback, with metric names MLflow accepts: a replica's 'seed=0/x' is logged as 'seed:0/x'."""
+    from ray.air.integrations.mlflow import MLflowLoggerCallback  # optional dependency (extra 'tracking')
+
+    class MLflowLogger(MLflowLoggerCallback):
+        def log_trial_result(self, iteration: int, trial, result: dict) -> None:
+            flat = flatten_dict(result, delimiter="/")
+            super().log_trial_result(iteration, trial, {k.replace("=", ":"): v for k, v in flat.items()})
+
+    return MLflowLogger(tracking_uri=uri, experiment_name=name)
 
 
 def init_ray(address: str | None = None) -> None:
@@ -102,6 +147,7 @@ def fit(
     checkpoint: tune.CheckpointConfig | None = None,
     progress: str | Callback = "lines",
     resume: bool = False,
+    loggers: Sequence[str] = (),
 ) -> tune.ResultGrid:
     """Run the Tune experiment `storage/name` described by `spec` and return its results.
 
@@ -109,7 +155,7 @@ def fit(
     it is continued instead of started over; a different experiment there is an error, and
     so is `resume=True` with nothing to continue. `progress`: "lines" (one per result),
     "table" (a table of all trials, see `ProgressTable`) or a Tune callback of its own
-    (`StageProgress`).
+    (`StageProgress`). `loggers` adds experiment tracking (`logger_callbacks`).
     """
     if not isinstance(progress, Callback) and progress not in PROGRESS:
         raise ValueError(f"progress must be one of {sorted(PROGRESS)}, got {progress!r}")
@@ -119,7 +165,7 @@ def fit(
         raise ValueError(f"nothing to resume: {str(path)!r} holds no Tune experiment (run without --resume to start it)")
     check_spec(path, spec)
     init_ray(address)
-    callbacks = [TrimRerunResults(), progress if isinstance(progress, Callback) else PROGRESS[progress]()]
+    callbacks = [TrimRerunResults(), progress if isinstance(progress, Callback) else PROGRESS[progress](), *logger_callbacks(loggers, path, name)]
     if restorable:
         tuner = tune.Tuner.restore(str(path), trainable=trainable, param_space=param_space, resume_unfinished=True, resume_errored=True)
         # tuner.pkl holds the first run's callbacks; this run's progress choice (and fixes) win.

@@ -7,6 +7,10 @@ from types import SimpleNamespace
 import pytest
 
 from rllib_conv.modules import AGG_HEAD_ID, PartnerMapping
+from rllib_conv.modules.partner_schedule import PartnerFunction, WeightedPartners
+from rllib_conv.training.algorithm import build_ppo_config
+from rllib_conv.training.ego_setup import resolve
+from rllib_conv.training.experiment import ExperimentConfig
 
 
 def ep(i: int) -> SimpleNamespace:
@@ -36,3 +40,82 @@ def test_shared_head_for_agg_and_unknown_agents() -> None:
         m("player_2", ep(0))
     with pytest.raises(ValueError, match="at least one partner"):
         PartnerMapping([], "player_0", "player_1")
+
+
+def _partners_played(m: PartnerMapping, episodes: int, replica: int | None = None) -> list[str]:
+    agent = "player_1" if replica is None else f"player_1#{replica}"
+    return [m(agent, ep(i)).split("@", 1)[1].split("#")[0] for i in range(episodes)]
+
+
+def test_weighted_partners_are_drawn_with_their_weights_reproducibly() -> None:
+    def mapping(seed: int) -> PartnerMapping:
+        return PartnerMapping(["a", "b", "c"], "player_0", "player_1", schedule=WeightedPartners({"a": 3.0, "b": 1.0}, [seed]))
+
+    played = _partners_played(mapping(0), 4000)
+    assert abs(played.count("a") / 4000 - 0.75) < 0.03 and abs(played.count("b") / 4000 - 0.25) < 0.03 and "c" not in played
+    assert _partners_played(mapping(0), 50) == played[:50] and _partners_played(mapping(1), 50) != played[:50]
+
+
+def test_a_replica_draws_its_partners_as_it_would_alone() -> None:
+    names = ["a", "b", "c"]
+    alone = PartnerMapping(names, "player_0", "player_1", schedule=WeightedPartners({"a": 1.0, "b": 1.0, "c": 1.0}, [7]))
+    packed = PartnerMapping(names, "player_0", "player_1", replica_partners=[names] * 3, schedule=WeightedPartners({"a": 1.0, "b": 1.0, "c": 1.0}, [5, 7, 9]))
+    assert _partners_played(packed, 40, replica=1) == _partners_played(alone, 40)
+    assert _partners_played(packed, 40, replica=0) != _partners_played(packed, 40, replica=1)
+
+
+def test_a_users_function_chooses_the_partner_of_each_episode() -> None:
+    m = PartnerMapping(["a", "b", "c"], "player_0", "player_1", schedule=PartnerFunction("tests.modules.mapping_functions:alternate_first_two", [0]))
+    assert _partners_played(m, 5) == ["a", "b", "a", "b", "a"]
+    assert m("player_0", ep(1)) == "ego@b"
+    state = m.get_state()
+    restored = PartnerMapping(["a", "b", "c"], "player_0", "player_1", schedule=PartnerFunction("tests.modules.mapping_functions:alternate_first_two", [0]))
+    restored.set_state(state)
+    assert _partners_played(restored, 7)[5:] == ["b", "a"]  # it goes on counting episodes where it stopped
+    wrong = PartnerMapping(["a", "b"], "player_0", "player_1", schedule=PartnerFunction("tests.modules.mapping_functions:nobody", [0]))
+    with pytest.raises(ValueError, match="returned 'nobody' for episode 0; expected one of \\['a', 'b'\\]"):
+        wrong("player_0", ep(0))
+
+
+@pytest.mark.parametrize(
+    ("path", "match"),
+    [
+        ("tests.modules.mapping_functions:missing", "cannot be loaded"),
+        ("no_such_module_xyz:f", "cannot be loaded"),
+        ("tests.modules.mapping_functions:NOT_CALLABLE", "is not callable"),
+        ("nodots", "expected 'package.module:function'"),
+    ],
+)
+def test_a_bad_function_path_is_refused_when_the_experiment_resolves(path: str, match: str) -> None:
+    with pytest.raises(ValueError, match=match):
+        resolve(ExperimentConfig(population="bandit-s2-hand", mapping={"kind": "function", "function": path}))
+
+
+def test_mapping_settings_are_validated() -> None:
+    with pytest.raises(ValueError, match="mapping.weights is for kind 'weighted'"):
+        ExperimentConfig(population="bandit-s2-hand", mapping={"kind": "weighted"})
+    with pytest.raises(ValueError, match="mapping.function is for kind 'function'"):
+        ExperimentConfig(population="bandit-s2-hand", mapping={"function": "a:b"})
+    with pytest.raises(ValueError, match=r"mapping.weights: \['hand-test-0'\] are not training partners"):
+        resolve(ExperimentConfig(population="bandit-s2-hand", mapping={"kind": "weighted", "weights": {"hand-test-0": 1.0}}))
+    with pytest.raises(ValueError, match="positive weight"):
+        ExperimentConfig(population="bandit-s2-hand", mapping={"kind": "weighted", "weights": {"hand-train-0": 0.0}})
+
+
+@pytest.mark.parametrize(
+    ("mapping", "played"),
+    [
+        ({"kind": "weighted", "weights": {"hand-train-1": 1.0}}, {"hand-train-1"}),
+        ({"kind": "function", "function": "tests.modules.mapping_functions:last_partner"}, {"hand-train-3"}),
+        ({}, {f"hand-train-{k}" for k in range(4)}),
+    ],
+)
+def test_training_plays_the_partners_the_mapping_chooses(ray_session, mapping: dict, played: set[str]) -> None:
+    exp = ExperimentConfig(population="bandit-s2-hand", model={"hidden": 8}, ppo={"rollout_per_partner": 16, "num_epochs": 1}, mapping=mapping)
+    algo = build_ppo_config(resolve(exp)).build_algo()
+    try:
+        sampled = algo.train()["env_runners"]["num_module_steps_sampled_lifetime"]
+    finally:
+        algo.stop()
+    partners = {mid.split("@", 1)[1].split("#")[0] for mid, n in sampled.items() if mid.startswith("partner@") and n > 0}
+    assert partners == played
