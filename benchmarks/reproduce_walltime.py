@@ -1,6 +1,7 @@
 """Wall time of fixed `reproduce` slices, by the code before the speed work (a git worktree of its commit) and now.
 
     OMP_NUM_THREADS=1 python benchmarks/reproduce_walltime.py [--old-commit 63f6b75] [--slices bandit blocks] [--work DIR]
+    python benchmarks/reproduce_walltime.py --measured reproduce/bandit --old-summary benchmarks/results/reproduce_bandit_extended.json
 
 Each slice runs from an empty folder, old code then new, one after the other on the same
 machine (it is shared and noisy: compare the ratio, not the seconds). Printed and written
@@ -8,6 +9,10 @@ to `benchmarks/results/reproduce_walltime.json`: per slice the wall time of each
 ratio, the stage times, and for the new code where each stage's core-seconds went (trial
 set-up, RLlib iterations, evaluations, and what is left of cores x wall: Tune's overhead
 and idle cores), read from the `time/*` results every trial reports.
+
+`--measured` runs nothing: it reads a full plan already run by the new code (its stage
+markers and trials) beside the stage times an old `reproduce_summary` file recorded, and
+writes `reproduce_walltime_<game>_full.json`.
 """
 
 from __future__ import annotations
@@ -22,6 +27,8 @@ from pathlib import Path
 from typing import Any
 
 from _common import machine, write_result
+
+from analysis import loaders
 
 REPO = Path(__file__).resolve().parents[1]
 SLICE_SCRIPT = REPO / "benchmarks" / "_reproduce_slice.py"
@@ -76,15 +83,51 @@ def breakdown(game_dir: Path, stages: dict[str, float], cores: int) -> dict[str,
     return out
 
 
+def _print_rows(rows: list[dict[str, Any]]) -> None:
+    print(f"{'slice':8} {'stage':9} {'old s':>8} {'new s':>8} {'ratio':>6}   new core-seconds: setup / iterate / evaluate / Tune+idle")
+    for row in rows:
+        for stage, old_s in row["old_stages_s"].items():
+            new_s = row["new_stages_s"].get(stage, float("nan"))
+            b = row["new_breakdown"].get(stage)
+            split = f"{b['setup_core_s']:.0f} / {b['iterate_core_s']:.0f} / {b['evaluate_core_s']:.0f} / {b['tune_and_idle_core_s']:.0f}" if b else ""
+            print(f"{row['slice']:8} {stage:9} {old_s:8.0f} {new_s:8.0f} {old_s / new_s if new_s else float('nan'):6.1f}   {split}")
+        print(f"{row['slice']:8} {'total':9} {row['old_wall_s']:8.0f} {row['new_wall_s']:8.0f} {row['speedup']:6.1f}")
+
+
+def measured(game_dir: Path, old_summary: Path, cores: int) -> None:
+    """The full plan of `game_dir` (already run) against the stage times of `old_summary`; print and write them."""
+    old = {s["stage"]: s["seconds"] for s in json.loads(old_summary.read_text())["stages"] if s.get("done")}
+    new = {s["stage"]: s["seconds"] for s in loaders.load_stage_times(game_dir).to_dict(orient="records") if s.get("done")}
+    row = {
+        "slice": game_dir.name,
+        "what": f"the full {game_dir.name} plan: {loaders.read_plan(game_dir)}",
+        "old_wall_s": sum(old.values()),
+        "new_wall_s": sum(new.values()),
+        "speedup": sum(old.values()) / sum(new.values()),
+        "old_stages_s": old,
+        "new_stages_s": new,
+        "new_breakdown": breakdown(game_dir, new, cores),
+    }
+    _print_rows([row])
+    print(f"wrote {write_result(f'reproduce_walltime_{game_dir.name}_full', {'old_summary': str(old_summary), 'cores': cores, 'slices': [row]})}")
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--old-commit", default=OLD_COMMIT)
     p.add_argument("--slices", nargs="+", default=list(SLICES), choices=list(SLICES))
     p.add_argument("--work", type=Path, default=None, help="where the old worktree and the slices' folders go (default: a temp dir)")
+    p.add_argument("--measured", type=Path, help="run nothing: a reproduce game folder the new code already ran in full")
+    p.add_argument("--old-summary", type=Path, help="with --measured: the old code's reproduce_summary JSON (its stage times)")
     args = p.parse_args()
+    cores = os.cpu_count() or 1
+    if args.measured or args.old_summary:
+        if not (args.measured and args.measured.is_dir() and args.old_summary and args.old_summary.is_file()):
+            p.error("--measured needs a game folder and --old-summary an existing reproduce_summary JSON")
+        measured(args.measured, args.old_summary, cores)
+        return
     work = args.work or Path(tempfile.mkdtemp(prefix="walltime-"))
     old = worktree(args.old_commit, work)
-    cores = os.cpu_count() or 1
     rows = []
     for name in args.slices:
         spec = SLICES[name]
@@ -105,14 +148,7 @@ def main() -> None:
         )
         print(f"{name}: old {before['wall_s']:.0f} s, new {after['wall_s']:.0f} s, {before['wall_s'] / after['wall_s']:.1f}x faster", flush=True)
     print()
-    print(f"{'slice':8} {'stage':9} {'old s':>8} {'new s':>8} {'ratio':>6}   new core-seconds: setup / iterate / evaluate / Tune+idle")
-    for row in rows:
-        for stage, old_s in row["old_stages_s"].items():
-            new_s = row["new_stages_s"].get(stage, float("nan"))
-            b = row["new_breakdown"].get(stage)
-            split = f"{b['setup_core_s']:.0f} / {b['iterate_core_s']:.0f} / {b['evaluate_core_s']:.0f} / {b['tune_and_idle_core_s']:.0f}" if b else ""
-            print(f"{row['slice']:8} {stage:9} {old_s:8.0f} {new_s:8.0f} {old_s / new_s if new_s else float('nan'):6.1f}   {split}")
-        print(f"{row['slice']:8} {'total':9} {row['old_wall_s']:8.0f} {row['new_wall_s']:8.0f} {row['speedup']:6.1f}")
+    _print_rows(rows)
     path = write_result("reproduce_walltime", {"old_commit": args.old_commit, "cores": cores, "slices": rows})
     print(f"wrote {path}")
     print(f"machine: {machine()['cpu']}, {cores} cores")

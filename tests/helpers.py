@@ -18,6 +18,17 @@ from rllib_conv.training.experiment import ExperimentConfig
 from rllib_conv.training.replica_export import replica_module
 
 
+def tiny_experiment(name: str, timesteps: int = 64) -> dict:
+    """A bandit experiment small enough to train in seconds (1 symmetric context, 8 hidden units)."""
+    return {
+        "name": name,
+        "population": "bandit-s1-hand",
+        "model": {"hidden": 8},
+        "ppo": {"rollout_per_partner": 16, "num_epochs": 1},
+        "run": {"timesteps": timesteps},
+    }
+
+
 def bandit_setup(**overrides) -> EgoSetup:
     """The paper's bandit (2 symmetric contexts, 4 hand-designed partners) with `overrides`."""
     return resolve(ExperimentConfig(population="bandit-s2-hand", **overrides))

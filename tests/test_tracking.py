@@ -11,14 +11,9 @@ from tensorboardX.proto import event_pb2
 from rllib_conv.cli import main
 from rllib_conv.pipelines.train import run
 from rllib_conv.training.tuning import logger_callbacks
+from tests.helpers import tiny_experiment
 
-TINY = {
-    "name": "tracked",
-    "population": "bandit-s1-hand",
-    "model": {"hidden": 8},
-    "ppo": {"rollout_per_partner": 16, "num_epochs": 1},
-    "run": {"timesteps": 128},
-}
+TINY = tiny_experiment("tracked", timesteps=128)
 
 
 def scalar_tags(event_file: Path) -> set[str]:

@@ -223,7 +223,7 @@ def train_stage(
     for raw in raws:
         exp = _checked(raw)[0]
         first = first or exp
-        check_spec(storage / exp.name, raw)
+        check_spec(storage / exp.name, raw, grows="seed")  # more seeds later: the new ones train, the rest are kept
         names.append(exp.name)
         jobs += training_jobs(raw, storage / exp.name)
     todo = [left for job in jobs if (left := _unfinished(job))]

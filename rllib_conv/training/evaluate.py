@@ -38,13 +38,13 @@ def task_probs(module: ConventionMultiRLModule, obs: np.ndarray, mask: np.ndarra
 
 
 def ego_head_partner(module: ConventionMultiRLModule, head_id: str, seed: int = 0) -> PolicyPartner:
-    """The ego with head `head_id` as a sampling `Partner`, for `play_episodes`."""
+    """The ego with head `head_id` as a sampling `Partner`, for `play_episodes` (its weights fixed while it plays)."""
 
     def logits(obs: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
         z, task_logits = module.task.policy(obs, mask)
         return module[head_id].logits(z, task_logits, mask)
 
-    return PolicyPartner(head_id, logits, greedy=False, seed=seed)
+    return PolicyPartner(head_id, logits, greedy=False, seed=seed, memo=True)
 
 
 def bandit_exact_return(module: ConventionMultiRLModule, head_id: str, env: CollaborativeBanditEnv, partner: Partner) -> float:

@@ -120,17 +120,32 @@ def spec_name(prefix: str, spec: Any) -> str:
     return f"{prefix}{digest[:12]}"
 
 
-def check_spec(folder: Path, spec: dict[str, Any]) -> None:
-    """Record `spec` in `folder`, or raise ValueError if the folder holds a different experiment."""
+def _grid_values(value: Any) -> list[Any]:
+    """The values a config entry stands for: a grid's list, or the one value."""
+    return list(value[GRID_KEY]) if isinstance(value, dict) and GRID_KEY in value else [value]
+
+
+def check_spec(folder: Path, spec: dict[str, Any], grows: str | None = None) -> None:
+    """Record `spec` in `folder`, or raise ValueError if the folder holds a different experiment.
+
+    `grows`: a top-level key (the seeds) whose values may differ from the recorded spec's:
+    the experiment is the same with more (or fewer) of them, and the record keeps them all.
+    """
     path = folder / SPEC_FILE
     if path.is_file():
         stored = yaml.safe_load(path.read_text())
-        if stored != spec:
+        if stored == spec:
+            return
+        same = grows is not None and {k: v for k, v in stored.items() if k != grows} == {k: v for k, v in spec.items() if k != grows}
+        if not same:
             raise ValueError(
                 f"{str(folder)!r} already holds a different experiment (see its {SPEC_FILE}); "
                 "use another name or storage folder, or delete it to start over"
             )
-        return
+        values = sorted({*_grid_values(stored.get(grows)), *_grid_values(spec.get(grows))} - {None})
+        spec = {**spec, grows: {GRID_KEY: values}}
+        if spec == stored:
+            return
     folder.mkdir(parents=True, exist_ok=True)
     tmp = path.with_suffix(".tmp")
     tmp.write_text(yaml.safe_dump(spec, sort_keys=False))

@@ -36,6 +36,12 @@ def test_blocks_plan_adds_ours_with_the_head_penalty() -> None:
     assert narrowed.stage_experiments("zeroshot") == [f"blocks-perm__{m}" for m in ("modular-lam0.5", "no_task_logits", "modular-lam0.5-hl0.01")]
 
 
+def test_hanabi_plan_compares_ours_with_every_baseline_the_other_games_have() -> None:
+    plan = plan_for("hanabi")
+    assert [m.label for m in plan.selfplay_methods] == ["modular-lam0.5", "agg", "no_task_logits", "maml"]
+    assert {m.label: m.settings for m in plan.selfplay_methods}["maml"] == {"method": "maml"}
+
+
 def test_blocks_plan_adapts_ours_from_a_picked_head_too() -> None:
     plan = plan_for("blocks")
     assert [(v.label, v.base.label, v.settings) for v in plan.adapt_variants] == [

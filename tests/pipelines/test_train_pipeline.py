@@ -6,19 +6,22 @@ import json
 
 import numpy as np
 import pandas as pd
+import pytest
 import torch
 import yaml
 
 from rllib_conv import partners
-from rllib_conv.common.run_folders import CONFIG_FILE, EVAL_FILE
+from rllib_conv.common.run_folders import CONFIG_FILE, EVAL_FILE, SPEC_FILE
 from rllib_conv.envs.oracles import oracle_for
 from rllib_conv.learners.marginal_learner import head_size
 from rllib_conv.modules.multi import ego_id
-from rllib_conv.pipelines.train import run
+from rllib_conv.pipelines.train import run, train_stage
 from rllib_conv.training import experiment
 from rllib_conv.training.checkpoints import last_checkpoint
 from rllib_conv.training.evaluate import load_module, task_probs
 from rllib_conv.training.marginals import bandit_states
+from rllib_conv.training.tuning import check_spec
+from tests.helpers import tiny_experiment
 
 PARTNERS = [f"hand-train-{k}" for k in range(4)]
 
@@ -95,3 +98,28 @@ def test_head_penalty_hands_the_rules_to_the_task_module_and_keeps_the_conventio
     assert (task[rule] * optimal[rule]).sum(axis=1).min() >= 0.95  # the task module alone plays the rules
     for name in PARTNERS:
         assert result.metrics[f"eval/exact/{name}"] >= 0.9, (name, result.metrics[f"eval/exact/{name}"])
+
+
+def test_a_recorded_experiment_may_grow_its_seeds_but_not_change(tmp_path) -> None:
+    spec = {"name": "e", "lam": 0.5, "seed": {"grid_search": [0, 1, 2]}}
+    check_spec(tmp_path, spec, grows="seed")
+    check_spec(tmp_path, {**spec, "seed": {"grid_search": [3, 4]}}, grows="seed")
+    assert yaml.safe_load((tmp_path / SPEC_FILE).read_text())["seed"] == {"grid_search": [0, 1, 2, 3, 4]}
+    check_spec(tmp_path, {**spec, "seed": 1}, grows="seed")  # fewer seeds: the record keeps them all
+    assert yaml.safe_load((tmp_path / SPEC_FILE).read_text())["seed"] == {"grid_search": [0, 1, 2, 3, 4]}
+    with pytest.raises(ValueError, match="already holds a different experiment"):
+        check_spec(tmp_path, {**spec, "lam": 0.3}, grows="seed")
+    with pytest.raises(ValueError, match="already holds a different experiment"):
+        check_spec(tmp_path, {**spec, "seed": {"grid_search": [7]}})  # only the key named may differ
+
+
+def test_a_train_stage_with_more_seeds_trains_the_new_seeds_only(ray_session, tmp_path) -> None:
+    raw = tiny_experiment("grown")
+    assert train_stage([{**raw, "seed": {"grid_search": [0]}}], storage=tmp_path) == ["grown"]
+    first = tmp_path / "grown"
+    (seed0,) = [p for p in first.rglob("seed=0") if p.is_dir()]
+    before = {p: p.stat().st_mtime_ns for p in seed0.rglob("*") if p.is_file()}
+    assert train_stage([{**raw, "seed": {"grid_search": [0, 1]}}], storage=tmp_path) == ["grown"]
+    assert sorted(p.name for p in first.rglob("seed=*") if p.is_dir()) == ["seed=0", "seed=1"]
+    assert {p: p.stat().st_mtime_ns for p in seed0.rglob("*") if p.is_file()} == before  # seed 0 was not trained again
+    assert train_stage([{**raw, "seed": {"grid_search": [0, 1]}}], storage=tmp_path) == []
