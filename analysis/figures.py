@@ -40,7 +40,7 @@ LABEL_STYLES: dict[str, tuple[str, str | tuple]] = {
     "scratch": ("#000000", ":"),
     "modular-lam0": ("#E69F00", "--"),  # orange
     "modular-lam0.3": ("#882255", (0, (3, 1, 1, 1))),  # wine, dash-dot
-    "lowz-lam0.5": ("#332288", (0, (1, 1))),  # indigo, dense dots
+    "lowz-lam0.5": ("#332288", (0, (6, 1.5))),  # indigo, long dashes (dots read as from scratch's black)
     "modular-lam0.5-hl0.01": ("#44AA99", (0, (5, 1, 1, 1, 1, 1))),  # teal, dash-dot-dot (not in the paper)
     "modular-lam0.5-pick": ("#999933", (0, (8, 2))),  # olive, long dashes (not in the paper)
     "modular-lam0.5-hl0.01-pick": ("#888888", (0, (8, 2, 1, 2))),  # grey, long dash-dot (not in the paper)
