@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import time
@@ -45,7 +46,32 @@ class ProgressLine(Callback):
         print("  ".join(parts), flush=True)
 
 
-class ProgressTable(Callback):
+class _ThrottledPrint(Callback):
+    """Prints `text(trials)` at most every `every` seconds while results arrive, and whenever a trial finishes or fails."""
+
+    every: float
+    log: Any  # where the text goes
+    _last_print: float
+
+    def text(self, trials: list) -> str:
+        raise NotImplementedError
+
+    def _print(self, trials: list) -> None:
+        self._last_print = time.monotonic()
+        self.log(self.text(trials))
+
+    def on_trial_result(self, iteration: int, trials: list, trial: Any, result: dict[str, Any], **info: Any) -> None:
+        if time.monotonic() - self._last_print >= self.every:
+            self._print(trials)
+
+    def on_trial_complete(self, iteration: int, trials: list, trial: Any, **info: Any) -> None:
+        self._print(trials)
+
+    def on_trial_error(self, iteration: int, trials: list, trial: Any, **info: Any) -> None:
+        self._print(trials)
+
+
+class ProgressTable(_ThrottledPrint):
     """Print a table of every trial (its swept values, status, iteration, steps, return) as the sweep runs.
 
     Reprinted at most every `every` seconds while results arrive, whenever a trial
@@ -56,6 +82,7 @@ class ProgressTable(Callback):
 
     def __init__(self, every: float = 30.0) -> None:
         self.every = every
+        self.log = functools.partial(print, flush=True)
         self._last_print = 0.0
 
     def table(self, trials: list) -> str:
@@ -80,19 +107,7 @@ class ProgressTable(Callback):
         done = sum(t.status == "TERMINATED" for t in trials)
         return "\n".join([f"--- {done}/{len(trials)} trials finished ---", *lines])
 
-    def _print(self, trials: list) -> None:
-        self._last_print = time.monotonic()
-        print(self.table(trials), flush=True)
-
-    def on_trial_result(self, iteration: int, trials: list, trial: Any, result: dict[str, Any], **info: Any) -> None:
-        if time.monotonic() - self._last_print >= self.every:
-            self._print(trials)
-
-    def on_trial_complete(self, iteration: int, trials: list, trial: Any, **info: Any) -> None:
-        self._print(trials)
-
-    def on_trial_error(self, iteration: int, trials: list, trial: Any, **info: Any) -> None:
-        self._print(trials)
+    text = table
 
     def on_experiment_end(self, trials: list, **info: Any) -> None:
         self._print(trials)
@@ -113,7 +128,7 @@ def _duration(seconds: float) -> str:
     return f"{seconds // 3600}h{seconds % 3600 // 60:02d}m" if seconds >= 3600 else f"{seconds // 60}m{seconds % 60:02d}s"
 
 
-class StageProgress(Callback):
+class StageProgress(_ThrottledPrint):
     """One line for a whole stage, at most every `every` seconds and when a trial ends:
     trials done / total, env steps played / to play, elapsed time and an ETA.
 
@@ -153,22 +168,13 @@ class StageProgress(Callback):
             eta = _duration((total - done) / rate) if rate > 0 and total > done else "?"
         return f"{self.label}: {finished}/{len(trials)} trials done, {_count(done)}/{_count(total)} env steps, {_duration(elapsed)} elapsed, ETA {eta}"
 
-    def _print(self, trials: list) -> None:
-        self._last_print = time.monotonic()
-        self.log(self.line(trials))
+    text = line
 
     def on_trial_result(self, iteration: int, trials: list, trial: Any, result: dict[str, Any], **info: Any) -> None:
         if self._before is None:  # what earlier runs played (restored trials' last results)
             self._before = self._steps(trials)[0]
         self._latest[trial.trial_id] = result
-        if time.monotonic() - self._last_print >= self.every:
-            self._print(trials)
-
-    def on_trial_complete(self, iteration: int, trials: list, trial: Any, **info: Any) -> None:
-        self._print(trials)
-
-    def on_trial_error(self, iteration: int, trials: list, trial: Any, **info: Any) -> None:
-        self._print(trials)
+        super().on_trial_result(iteration, trials, trial, result, **info)
 
 
 PROGRESS = {"lines": ProgressLine, "table": ProgressTable}
