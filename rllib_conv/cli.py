@@ -47,6 +47,7 @@ ADAPT_SET_KEYS = {
     "ppo": "PPO settings replacing the run's, e.g. --set ppo.lr=1e-4 or ppo.num_epochs=10",
     "seed": "seed of the evaluation episodes (0)",
     "max_pack": "curves trained together in one algorithm, for speed (32; each trains as it would alone)",
+    "posterior": "--head-init posterior's priors, e.g. --set posterior.recombined=0.5 posterior.novel=0.1 posterior.epsilon=0.05 posterior.handover=0.95",
 }
 ZEROSHOT_SET_KEYS = {
     "head_steps": "step 1: env steps training the test partners' heads on the old task (bandit 2560, blocks 300000)",
@@ -720,8 +721,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--method", choices=["scratch"], help="adapt a fresh network instead (learning from scratch)")
     p.add_argument("--frozen-task", action="store_true", help="keep the task module frozen while adapting")
     p.add_argument(
-        "--head-init", default="fresh", choices=["fresh", "pick"],
-        help="pick: first try the fresh head and every training partner's head on the new partner, adapt from the best (not in the paper)",
+        "--head-init", default="fresh", choices=["fresh", "pick", "posterior"],
+        help="pick: first try the fresh head and every training partner's head on the new partner, adapt from the best; "
+        "posterior: adapt the fresh head and play by a posterior over which training partner's convention the new partner follows "
+        "(both not in the paper)",
     )
     p.add_argument("--pick-steps", type=_positive_int, help="env steps spent picking the head (default: one update's worth)")
     _add_run_args(p)

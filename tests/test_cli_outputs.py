@@ -22,7 +22,7 @@ from rllib_conv.common.run_folders import trial_folders
 from rllib_conv.pipelines.pair import pair
 from rllib_conv.pipelines.pair_config import PairConfig
 from rllib_conv.training.checkpoints import last_checkpoint
-from rllib_conv.training.evaluate import bandit_exact_return, load_module, task_probs
+from rllib_conv.training.evaluate import bandit_exact_return, ego_head_partner, load_module, task_probs
 
 TINY = {"name": "tiny", "population": "bandit-s1-hand", "model": {"hidden": 8}, "ppo": {"rollout_per_partner": 16, "num_epochs": 1}, "run": {"timesteps": 64}}
 
@@ -97,7 +97,7 @@ def test_pair_an_ego_head_with_a_population_member_matches_the_exact_evaluation(
     module = load_module(last_checkpoint(trial))
     env = envs.make("bandit", symmetric=1)
     partner = partners.get("bandit-s1-hand").entries("train")[1].build()
-    assert row["exact_return"] == pytest.approx(bandit_exact_return(module, "ego@hand-train-1", env, partner), abs=1e-6)
+    assert row["exact_return"] == pytest.approx(bandit_exact_return(ego_head_partner(module, "ego@hand-train-1"), env, partner), abs=1e-6)
     assert (row["seat_0"], row["seat_1"], row["episodes"]) == (seats[0], seats[1], 50)
 
 

@@ -2,11 +2,13 @@
 
 `make(name, **config)` builds a registered env, `names()` lists them, and
 `register(name, factory)` adds a user's own PettingZoo env (AEC or parallel) under a
-name that configs and the CLI then accept. `to_rllib(name)` exposes any registered
+name that configs and the CLI then accept (and `register_convention_key` says which of its
+situations carry separate conventions). `to_rllib(name)` exposes any registered
 env to RLlib/Tune as a `MultiAgentEnv`.
 """
 
 from rllib_conv.envs.bandit import CollaborativeBanditEnv
+from rllib_conv.envs.convention_keys import convention_key, register_convention_key
 from rllib_conv.envs.blocks import BlockPlacingEnv
 from rllib_conv.envs.hanabi import HanabiEnv
 from rllib_conv.envs.registry import make, names, register
@@ -15,4 +17,4 @@ register("bandit", CollaborativeBanditEnv)
 register("blocks", BlockPlacingEnv)
 register("hanabi", HanabiEnv)
 
-__all__ = ["make", "names", "register", "CollaborativeBanditEnv", "BlockPlacingEnv", "HanabiEnv"]
+__all__ = ["make", "names", "register", "convention_key", "register_convention_key", "CollaborativeBanditEnv", "BlockPlacingEnv", "HanabiEnv"]

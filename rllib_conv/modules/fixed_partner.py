@@ -24,7 +24,9 @@ def _numpy(x: Any) -> np.ndarray:
 class FixedPartnerModule(RLModule):
     """Wraps the partner described by `model_config["partner"]` (a manifest spec).
 
-    `model_config["seed"]` seeds stochastic partners.
+    `model_config["seed"]` seeds stochastic partners. After `record_moves()` it keeps every
+    (observation, mask, action) it plays until `take_moves()` hands them over: what an
+    adapter learns about a new partner from the env steps it has played.
     """
 
     framework = None
@@ -32,12 +34,30 @@ class FixedPartnerModule(RLModule):
     def setup(self) -> None:
         self.partner = partner_from_spec(self.model_config["partner"])
         self.partner.seed(self.model_config.get("seed"))
+        self._moves: list[tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
+
+    def record_moves(self) -> None:
+        """Keep the moves played from now on (until `take_moves`)."""
+        self._moves = []
+
+    def take_moves(self) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """The (observations [N, d], masks [N, A], actions [N]) recorded since the last call; None if not recording."""
+        if self._moves is None:
+            return None
+        moves, self._moves = self._moves, []
+        if not moves:
+            return None
+        obs, masks, actions = zip(*moves)
+        return np.concatenate(obs), np.concatenate(masks), np.concatenate(actions)
 
     def _forward(self, batch: dict[str, Any], **kwargs) -> dict[str, Any]:
         obs, mask = split_obs(batch)
         obs = _numpy(obs)
         mask = np.ones((len(obs), self.action_space.n), dtype=np.int8) if mask is None else _numpy(mask).astype(np.int8)
-        return {Columns.ACTIONS: self.partner.act_batch(obs, mask)}
+        actions = self.partner.act_batch(obs, mask)
+        if self._moves is not None and len(obs):
+            self._moves.append((np.array(obs), np.array(mask), np.asarray(actions)))
+        return {Columns.ACTIONS: actions}
 
     def _forward_train(self, batch: dict[str, Any], **kwargs) -> dict[str, Any]:
         raise RuntimeError(f"fixed partner {self.partner.name!r} is never trained")

@@ -19,6 +19,7 @@ class BanditConventionPartner(Partner):
     """Pulls `arms[context]` in every context (the context is the one-hot observation)."""
 
     kind = "bandit_convention"
+    deterministic = True
 
     def __init__(self, name: str, arms: list[int]) -> None:
         super().__init__(name)

@@ -14,10 +14,14 @@ class Partner(ABC):
     The same object drives the scripted demo, evaluation, and (wrapped in
     `modules.FixedPartnerModule`) a non-trained RLlib module. Subclasses set `kind`
     (the name used in population manifests) and implement `act`, `params` and, if
-    they hold randomness, `seed`.
+    they hold randomness, `seed`. Partners whose `act` is a function of its inputs set
+    `deterministic = True`; stochastic ones that can say what they draw from override
+    `action_probs` (the convention-posterior adapter needs it of every training partner).
+    Partners that change during play (an adapting ego) use `start_episode` and `observe_other`.
     """
 
     kind: ClassVar[str] = ""
+    deterministic: ClassVar[bool] = False
 
     def __init__(self, name: str) -> None:
         self.name = name
@@ -29,6 +33,28 @@ class Partner(ABC):
     def act_batch(self, observations: np.ndarray, action_masks: np.ndarray) -> np.ndarray:
         """Return one action per row of `observations` (a [B, obs_dim] array)."""
         return np.array([self.act(o, m) for o, m in zip(observations, action_masks)], dtype=np.int64)
+
+    def action_probs(self, observations: np.ndarray, action_masks: np.ndarray) -> np.ndarray:
+        """Return [B, A]: the probability of each action per row of `observations`.
+
+        Deterministic partners give the one-hot of `act_batch`; a stochastic partner must
+        override it (ValueError naming the kind otherwise).
+        """
+        if not self.deterministic:
+            raise ValueError(
+                f"partner {self.name!r} (kind {self.kind!r}) does not say what its actions are drawn from: "
+                "override Partner.action_probs, or set deterministic = True if act is a function of its inputs"
+            )
+        masks = np.asarray(action_masks)
+        out = np.zeros(masks.shape, dtype=np.float64)
+        out[np.arange(len(masks)), self.act_batch(observations, masks)] = 1.0
+        return out
+
+    def start_episode(self) -> None:
+        """A new episode begins (`partners.play.episode_stream` calls it); partners that adapt during play reset their per-episode state."""
+
+    def observe_other(self, observation: np.ndarray, action_mask: np.ndarray, action: int) -> None:
+        """The other seat chose `action` at its `observation` (with its `action_mask`); partners that adapt during play learn from it."""
 
     def seed(self, seed: int | None) -> None:
         """Seed the partner's own RNG; deterministic partners ignore it."""

@@ -49,6 +49,7 @@ class PermutationPartner(Partner):
     """P2 (blue): on its first move, places blue on `perm[red's cell]`; otherwise passes."""
 
     kind = "blocks_permutation"
+    deterministic = True
 
     def __init__(self, name: str, perm: list[int]) -> None:
         super().__init__(name)
@@ -74,6 +75,7 @@ class BlocksLeader(Partner):
     """
 
     kind = "blocks_leader"
+    deterministic = True
 
     def __init__(self, name: str, perm: list[int], new_task: bool = False) -> None:
         super().__init__(name)

@@ -46,6 +46,11 @@ class RandomLegalPartner(Partner):
         """Re-create the partner's RNG from `seed` (None: fresh entropy)."""
         self._rng = np.random.default_rng(seed)
 
+    def action_probs(self, observations: np.ndarray, action_masks: np.ndarray) -> np.ndarray:
+        """Uniform over each row's legal actions."""
+        legal = np.asarray(action_masks, dtype=np.float64)
+        return legal / legal.sum(axis=1, keepdims=True)
+
     def act(self, observation: np.ndarray, action_mask: np.ndarray) -> int:
         """Return a legal action drawn uniformly; ValueError if none is legal."""
         legal = _legal_ids(action_mask, self.name)
@@ -75,6 +80,7 @@ class HanabiRulePartner(Partner):
     """
 
     kind = "hanabi_rule"
+    deterministic = True
 
     def __init__(self, name: str = "hanabi_rule", **game: int) -> None:
         """Create the partner for observations of the game `game` (`HanabiConfig` keywords, validated like the env's)."""

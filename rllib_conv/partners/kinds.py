@@ -24,6 +24,12 @@ def kinds() -> list[str]:
     return sorted(_KINDS)
 
 
+def gives_action_probs(kind: str) -> bool:
+    """Whether partners of `kind` say what their actions are drawn from (`Partner.action_probs`); False for unknown kinds."""
+    cls = _KINDS.get(kind)
+    return cls is not None and (cls.deterministic or cls.action_probs is not Partner.action_probs)
+
+
 def partner_from_spec(spec: dict[str, Any]) -> Partner:
     """Rebuild a partner from its manifest entry `{"name", "kind", "params"}`."""
     for key in ("name", "kind"):

@@ -18,6 +18,12 @@ def _split(obs) -> tuple[np.ndarray, np.ndarray | None]:
     return obs, None
 
 
+def _tell_others(seats: dict[str, Partner], agent: str, observation: np.ndarray, mask: np.ndarray, action: int) -> None:
+    for other, partner in seats.items():
+        if other != agent:
+            partner.observe_other(observation, mask, action)
+
+
 def episode_stream(env: AECEnv | ParallelEnv, seats: dict[str, Partner], seed: int = 0) -> Iterator[tuple[float, int]]:
     """Play episodes without end with `seats[agent]` choosing for each agent; yield each one's (score, env steps).
 
@@ -25,7 +31,8 @@ def episode_stream(env: AECEnv | ParallelEnv, seats: dict[str, Partner], seed: i
     cooperative, so every seat gets the same total). Env steps count moves as RLlib's
     adapter does: one per agent move in AEC games, one per joint step in parallel ones.
     Episodes are seeded `seed, seed+1, ...` and each partner is seeded once with `seed`,
-    so play is reproducible.
+    so play is reproducible. Every seat hears `start_episode` before each episode and
+    `observe_other` after each move of another seat (what a partner adapting during play needs).
     """
     missing = set(env.possible_agents) - set(seats)
     if missing:
@@ -35,6 +42,8 @@ def episode_stream(env: AECEnv | ParallelEnv, seats: dict[str, Partner], seed: i
     first = env.possible_agents[0]
     for ep in itertools.count():
         score, steps = 0.0, 0
+        for partner in seats.values():
+            partner.start_episode()
         if isinstance(env, AECEnv):
             env.reset(seed=seed + ep)
             for agent in env.agent_iter():
@@ -46,16 +55,21 @@ def episode_stream(env: AECEnv | ParallelEnv, seats: dict[str, Partner], seed: i
                     continue
                 vec, mask = _split(obs)
                 mask = np.ones(env.action_space(agent).n, dtype=np.int8) if mask is None else mask
-                env.step(seats[agent].act(vec, mask))
+                action = seats[agent].act(vec, mask)
+                _tell_others(seats, agent, vec, mask, action)
+                env.step(action)
                 steps += 1
         else:
             obs, _ = env.reset(seed=seed + ep)
             while env.agents:
-                actions = {}
+                actions, moves = {}, []
                 for agent in env.agents:
                     vec, mask = _split(obs[agent])
                     mask = np.ones(env.action_space(agent).n, dtype=np.int8) if mask is None else mask
                     actions[agent] = seats[agent].act(vec, mask)
+                    moves.append((agent, vec, mask, actions[agent]))
+                for move in moves:  # simultaneous moves: each seat hears the others' only after choosing its own
+                    _tell_others(seats, *move)
                 obs, rewards, _, _, _ = env.step(actions)
                 score += rewards.get(first, 0.0)
                 steps += 1

@@ -50,6 +50,15 @@ class PolicyPartner(Partner):
     def act_batch(self, observations: np.ndarray, action_masks: np.ndarray) -> np.ndarray:
         return self._choose(self.probs(observations, action_masks))
 
+    def action_probs(self, observations: np.ndarray, action_masks: np.ndarray) -> np.ndarray:
+        """What `act` draws from: `probs`, or its one-hot argmax when greedy."""
+        p = self.probs(observations, action_masks)
+        if not self.greedy:
+            return p.astype(np.float64)
+        out = np.zeros(p.shape, dtype=np.float64)
+        out[np.arange(len(p)), p.argmax(axis=1)] = 1.0
+        return out
+
     def _choose(self, p: np.ndarray) -> np.ndarray:
         """An action per row of probabilities [B, A]."""
         if self.greedy:

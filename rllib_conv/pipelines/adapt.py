@@ -6,7 +6,12 @@ run's resolved config with the new partner as its only partner, the task module'
 is evaluated before every update. All methods go through this one pipeline; `scratch`
 starts from a fresh single network instead. With `head_init: pick` the first `pick_steps`
 env steps try the fresh head and each training partner's head on the new partner instead
-of training, and the best one's weights start the new head (`head_pick`).
+of training, and the best one's weights start the new head (`head_pick`). With
+`head_init: posterior` the fresh head adapts as the paper's does, while the new partner's
+moves in those env steps feed a posterior over which training partner's convention it
+follows; the ego is evaluated playing by it (`convention_posterior.PosteriorPlayer`), and
+once one known convention is near certain the ego starts again from the trained ego with
+that partner's head, which PPO fine-tunes from there.
 
 Curves train in packs: one Tune trial (`AdaptTrainable`) holds up to `max_pack` curves of
 egos that differ only in seed and partner, as replicas of one algorithm (each with its own
@@ -35,14 +40,17 @@ from rllib_conv.common.config_files import validate
 from rllib_conv.common.methods import method
 from rllib_conv.common.run_folders import ADAPT_PREFIX, RL_MODULE_DIR, trial_folders
 from rllib_conv.envs.defaults import ADAPT_DEFAULTS
-from rllib_conv.modules.multi import AGG_HEAD_ID, TASK_ID
+from rllib_conv.modules import ego_id, partner_id
+from rllib_conv.modules.multi import AGG_HEAD_ID, TASK_ID, replica_id
 from rllib_conv.modules.stacked_multi import STACK_ID
 from rllib_conv.pipelines.adapt_config import AdaptConfig
 from rllib_conv.training.algorithm import Replica, build_algorithm, packing_key
 from rllib_conv.training.callbacks import STEPS_DONE, STEPS_TOTAL, StageProgress
 from rllib_conv.training.checkpoints import last_checkpoint
 from rllib_conv.training.ego_setup import EgoSetup, setup_for
-from rllib_conv.training.evaluate import ego_head_partner, ego_return, load_module
+from rllib_conv.partners.kinds import gives_action_probs
+from rllib_conv.training.convention_posterior import ConventionPosterior, PosteriorPlayer
+from rllib_conv.training.evaluate import ego_head_partner, load_module, player_return
 from rllib_conv.training.experiment import ExperimentConfig, trial_config
 from rllib_conv.training.head_pick import HeadPick, pick_head
 from rllib_conv.training.packs import cluster_cpus, packs, write_tables
@@ -83,11 +91,15 @@ def adapt_curve(cfg: AdaptConfig, run: str, partner: str) -> Curve:
     game = trained.env
     if pop.env != game:
         raise ValueError(f"population {pop.name!r} is for {pop.env!r}, but the ego in {str(trial)!r} was trained on {game!r}")
-    if cfg.head_init == "pick" and method(trained.method).single_head:
+    if cfg.head_init != "fresh" and method(trained.method).single_head:
         raise ValueError(
-            f"head_init 'pick' needs one head per training partner, but the ego in {str(trial)!r} was trained with "
+            f"head_init {cfg.head_init!r} needs one head per training partner, but the ego in {str(trial)!r} was trained with "
             f"method {trained.method!r} (one shared head)"
         )
+    if cfg.head_init == "posterior":
+        opaque = [e.name for e in partners.get(trained.population).entries("train") if not gives_action_probs(e.kind)]
+        if opaque:
+            raise ValueError(f"head_init 'posterior' models the training partners, but {opaque} do not give their action probabilities")
     every, _ = protocol(cfg, trained)
     defaults = ADAPT_DEFAULTS.get(game, {})
     ppo = trained.ppo.model_dump()
@@ -150,6 +162,63 @@ class AdaptTrainable(AlgorithmTrainable):
         self.picked: list[str | None] = [None] * k
         self.finished = [False] * k
         self.rows: list[dict[str, Any]] = []
+        if self.cfg.head_init == "posterior":
+            self._start_posteriors()
+
+    def _start_posteriors(self) -> None:
+        """Per curve: the trained ego's heads and partner models, an empty posterior; the new partner's moves recorded."""
+        self.trained, self.known, self.known_heads, self.posteriors = [], [], [], []
+        self.handed: list[int | None] = [None] * len(self.curves)
+        settings, seed = self.cfg.posterior, self.cfg.seed
+        for curve in self.curves:
+            train = partners.get(curve.trained.population).entries("train")
+            self.trained.append(load_module(last_checkpoint(curve.run)))
+            self.known_heads.append([ego_id(e.name) for e in train])
+            self.known.append([ego_head_partner(self.trained[-1], mid, seed) for mid in self.known_heads[-1]])
+            self.posteriors.append(
+                ConventionPosterior([e.build() for e in train], envs.convention_key(curve.setup.population.env), settings.recombined, settings.novel, settings.epsilon)
+            )
+        self.partner_modules = [replica_id(partner_id(c.setup.train[0].name), r) for r, c in enumerate(self.curves)]
+        mids = self.partner_modules
+        self.algo.env_runner_group.foreach_env_runner(lambda runner: [runner.module[m].record_moves() for m in mids], local_env_runner=True)
+
+    def _update_posteriors(self) -> None:
+        """Add the new partners' moves of the last update to their posteriors; hand a near-certain known convention's head over."""
+        mids = self.partner_modules
+        for moves in self.algo.env_runner_group.foreach_env_runner(lambda runner: {m: runner.module[m].take_moves() for m in mids}, local_env_runner=True):
+            for r, mid in enumerate(mids):
+                if moves[mid] is not None:
+                    self.posteriors[r].observe(*moves[mid])
+        heads, tasks = {}, {}
+        for r, posterior in enumerate(self.posteriors):
+            post = posterior.hypotheses()[:-1]
+            if self.handed[r] is None and post.max() >= self.cfg.posterior.handover:
+                self.handed[r] = int(post.argmax())
+                self.picked[r] = self.known_heads[r][self.handed[r]]
+                # The trained ego with that head, as it was: the head fits the task module it was trained beside.
+                heads[r], tasks[r] = self.trained[r][self.picked[r]].state_dict(), self.trained[r][TASK_ID].state_dict()
+        self._load_new_heads(heads, tasks)
+
+    def _load_new_heads(self, states: dict[int, dict[str, Any]], tasks: dict[int, dict[str, Any]] | None = None) -> None:
+        """Start replica r's new head from `states[r]` (a plain head's state dict) and its task module from `tasks[r]`, everywhere."""
+        if not states:
+            return
+
+        def load(learner: Any) -> None:
+            for r, state in states.items():
+                learner.module[STACK_ID].load_head(r, 0, state)
+            for r, state in (tasks or {}).items():
+                learner.module[STACK_ID].load_task(r, state)
+
+        self.algo.learner_group.foreach_learner(load)
+        push_learner_weights(self.algo)
+
+    def _player(self, r: int, plain: Any, head_id: str) -> Any:
+        """The ego of curve r as it is evaluated: its new head, or the posterior player around it."""
+        adapting = ego_head_partner(plain, head_id, self.cfg.seed + self.iteration)
+        if self.cfg.head_init != "posterior":
+            return adapting
+        return PosteriorPlayer(head_id, self.posteriors[r], self.known[r], adapting, self.handed[r], seed=self.cfg.seed + self.iteration)
 
     def _pick_heads(self) -> list[HeadPick]:
         """Per curve: try the fresh head and every trained head on the new partner; copy the winner into the new head."""
@@ -168,14 +237,7 @@ class AdaptTrainable(AlgorithmTrainable):
                 chosen[r] = trained[pick.chosen].state_dict()
             self.offset[r] = max(pick.steps, budget)
             picks.append(pick)
-        if chosen:
-
-            def load(learner: Any) -> None:
-                for r, state in chosen.items():
-                    learner.module[STACK_ID].load_head(r, 0, state)
-
-            self.algo.learner_group.foreach_learner(load)
-            push_learner_weights(self.algo)
+        self._load_new_heads(chosen)
         return picks
 
     def _evaluate(self) -> list[float]:
@@ -186,8 +248,8 @@ class AdaptTrainable(AlgorithmTrainable):
                 continue
             entry = curve.setup.train[0]
             plain = copy_replica(module, r, rep, self.plain[r])
-            score = ego_return(
-                plain, curve.setup.head_for(entry.name), curve.setup.population.env, curve.setup.env_config, entry.build(),
+            score = player_return(
+                self._player(r, plain, curve.setup.head_for(entry.name)), curve.setup.population.env, curve.setup.env_config, entry.build(),
                 curve.setup.ego_agent, curve.setup.partner_agent, self.cfg.episodes, seed=self.cfg.seed + self.iteration,
             )
             row = {**curve.label, "steps": self.steps[r], "mean_return": score["mean"], "stderr": score["stderr"], "exact_return": score.get("exact", math.nan)}
@@ -209,6 +271,9 @@ class AdaptTrainable(AlgorithmTrainable):
         else:
             with self.timings.measure("iterate"):
                 result = self.algo.train()
+            if self.cfg.head_init == "posterior":
+                with self.timings.measure("evaluate"):
+                    self._update_posteriors()
             self.steps = [self.offset[r] + replica_env_steps(result, c.setup, r, self.parallel) for r, c in enumerate(self.curves)]
         return {
             "steps": min(self.steps),

@@ -4,10 +4,29 @@ from __future__ import annotations
 
 from typing import Any, Literal
 
-from pydantic import Field, PositiveInt, model_validator
+from pydantic import Field, PositiveInt, confloat, model_validator
 
 from rllib_conv.common.config_files import Strict
 from rllib_conv.training.settings import FolderName
+
+
+Fraction = confloat(gt=0.0, lt=1.0)
+
+
+class PosteriorSettings(Strict):
+    """The convention posterior's priors and smoothing (`head_init: posterior`; `rllib_conv.training.convention_posterior`).
+
+    `recombined`: prior of "the partner recombines known conventions situation by
+    situation" against following one whole; `novel`: prior, per situation, of a convention
+    none of the training partners follows; `epsilon`: the share of uniform play mixed into
+    every training partner's model; `handover`: the posterior a whole known convention
+    needs before the adapting head is started from its head (PPO fine-tunes it from there).
+    """
+
+    recombined: Fraction = 0.5  # type: ignore[valid-type]
+    novel: Fraction = 0.1  # type: ignore[valid-type]
+    epsilon: Fraction = 0.05  # type: ignore[valid-type]
+    handover: Fraction = 0.95  # type: ignore[valid-type]
 
 
 class AdaptConfig(Strict):
@@ -22,6 +41,10 @@ class AdaptConfig(Strict):
     `head_init: pick` (not in the paper; egos with one head per partner) first spends
     `pick_steps` env steps (default `every`) trying the fresh head and every training
     partner's head on the new partner, and adapts from the best (`rllib_conv.training.head_pick`).
+    `head_init: posterior` (not in the paper; egos with one head per partner) adapts the
+    fresh head as the paper does, and plays by a posterior over which training partner's
+    convention the new partner follows, from the partner's moves (`posterior` settings;
+    `rllib_conv.training.convention_posterior`).
     """
 
     name: FolderName = "adapt"
@@ -31,8 +54,9 @@ class AdaptConfig(Strict):
     partners: list[str] | None = None
     method: Literal["scratch"] | None = None
     train_task: bool = True
-    head_init: Literal["fresh", "pick"] = "fresh"
+    head_init: Literal["fresh", "pick", "posterior"] = "fresh"
     pick_steps: PositiveInt | None = None
+    posterior: PosteriorSettings = Field(default_factory=PosteriorSettings)
     every: PositiveInt | None = None
     steps: PositiveInt | None = None
     episodes: PositiveInt = 200
@@ -44,8 +68,8 @@ class AdaptConfig(Strict):
 
     @model_validator(mode="after")
     def _consistent(self) -> "AdaptConfig":
-        if self.head_init == "pick" and self.method == "scratch":
-            raise ValueError("head_init 'pick' needs the trained ego's heads; method 'scratch' starts from a fresh network")
+        if self.head_init != "fresh" and self.method == "scratch":
+            raise ValueError(f"head_init {self.head_init!r} needs the trained ego's heads; method 'scratch' starts from a fresh network")
         if self.pick_steps is not None and self.head_init != "pick":
             raise ValueError(f"pick_steps is set but head_init is {self.head_init!r}; set head_init: pick to use it")
         return self

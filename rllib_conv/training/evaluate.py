@@ -47,14 +47,36 @@ def ego_head_partner(module: ConventionMultiRLModule, head_id: str, seed: int = 
     return PolicyPartner(head_id, logits, greedy=False, seed=seed, memo=True)
 
 
-def bandit_exact_return(module: ConventionMultiRLModule, head_id: str, env: CollaborativeBanditEnv, partner: Partner) -> float:
-    """Return the exact expected return of the ego head with a fixed bandit partner (contexts uniform)."""
+def bandit_exact_return(ego: Partner, env: CollaborativeBanditEnv, partner: Partner) -> float:
+    """Return the exact expected return of the `ego` player (its `action_probs`) with a fixed bandit partner (contexts uniform)."""
     contexts = np.eye(env.num_contexts, dtype=np.float32)
     mask = np.ones((env.num_contexts, env.num_arms), dtype=np.int8)
-    probs = head_probs(module, head_id, contexts, mask)
+    probs = ego.action_probs(contexts, mask)
     arms = partner.act_batch(contexts, mask)
     rows = np.arange(env.num_contexts)
     return float(np.mean(probs[rows, arms] * env.prizes[rows, arms]))
+
+
+def player_return(
+    ego: Partner,
+    env_name: str,
+    env_config: dict[str, Any],
+    partner: Partner,
+    ego_agent: str,
+    partner_agent: str,
+    episodes: int = 200,
+    seed: int = 0,
+) -> dict[str, float]:
+    """Return the mean return of the `ego` player with `partner` over `episodes` sampled episodes, and its standard error.
+
+    One-step bandits are also scored exactly from the two policies (`exact`).
+    """
+    env = envs.make(env_name, **env_config)
+    scores = play_episodes(env, {ego_agent: ego, partner_agent: partner}, episodes, seed)
+    out = {"mean": float(scores.mean()), "stderr": float(scores.std(ddof=1) / np.sqrt(len(scores))) if len(scores) > 1 else 0.0}
+    if isinstance(env, CollaborativeBanditEnv):
+        out["exact"] = bandit_exact_return(ego, env, partner)
+    return out
 
 
 def ego_return(
@@ -68,17 +90,8 @@ def ego_return(
     episodes: int = 200,
     seed: int = 0,
 ) -> dict[str, float]:
-    """Return the ego head's mean return with `partner` and its standard error.
-
-    One-step bandits are scored exactly from the two policies (`exact`); every game is
-    also scored by `episodes` sampled episodes (`mean`, `stderr`).
-    """
-    env = envs.make(env_name, **env_config)
-    scores = play_episodes(env, {ego_agent: ego_head_partner(module, head_id, seed), partner_agent: partner}, episodes, seed)
-    out = {"mean": float(scores.mean()), "stderr": float(scores.std(ddof=1) / np.sqrt(len(scores))) if len(scores) > 1 else 0.0}
-    if isinstance(env, CollaborativeBanditEnv):
-        out["exact"] = bandit_exact_return(module, head_id, env, partner)
-    return out
+    """Return the ego head's mean return with `partner` and its standard error (`player_return` of `ego_head_partner`)."""
+    return player_return(ego_head_partner(module, head_id, seed), env_name, env_config, partner, ego_agent, partner_agent, episodes, seed)
 
 
 def load_module(checkpoint: str | Path) -> ConventionMultiRLModule:

@@ -1,0 +1,176 @@
+"""The convention posterior (`head_init: posterior`, not in the paper): its arithmetic by hand, then through adaptation."""
+
+from __future__ import annotations
+
+import itertools
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from rllib_conv import envs
+from rllib_conv.envs.convention_keys import bandit_context
+from rllib_conv.partners.bandit import BanditConventionPartner
+from rllib_conv.partners.blocks import BlocksLeader, PermutationPartner, derangements
+from rllib_conv.partners.hanabi import RandomLegalPartner
+from rllib_conv.partners.play import episode_stream
+from rllib_conv.partners.population import from_partners
+from rllib_conv.pipelines.adapt import run_adaptation
+from rllib_conv.pipelines.adapt_config import AdaptConfig
+from rllib_conv.pipelines.train import run
+from rllib_conv.training import experiment
+from rllib_conv.common.run_folders import trial_folders
+from rllib_conv.training.convention_posterior import ConventionPosterior, PosteriorPlayer
+
+ONE_HOT = np.eye(4, dtype=np.float32)
+ALL_ARMS = np.ones((4, 8), dtype=np.int8)
+# Bandit, symmetric 2: contexts 0 and 1 have good arms {c, c + 4}; contexts 2 and 3 one good arm each.
+LOW, HIGH = BanditConventionPartner("low", [0, 1, 2, 3]), BanditConventionPartner("high", [4, 5, 2, 3])
+
+
+def moves(partner: BanditConventionPartner, contexts: list[int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    obs, masks = ONE_HOT[contexts], ALL_ARMS[contexts]
+    return obs, masks, partner.act_batch(obs, masks)
+
+
+def test_one_move_by_hand() -> None:
+    # The partner pulls arm 0 in context 0: "low" gives it 0.95 + 0.05/8, "high" 0.05/8, a novel convention 1/8.
+    post = ConventionPosterior([LOW, HIGH], bandit_context, recombined=0.5, novel=0.1, epsilon=0.05)
+    post.observe(*moves(LOW, [0]))
+    low, high, novel = 0.95 + 0.05 / 8, 0.05 / 8, 1 / 8
+    whole = np.array([0.25 * low, 0.25 * high, 0.5 * (0.45 * low + 0.45 * high + 0.1 * novel)])
+    assert post.hypotheses() == pytest.approx(whole / whole.sum(), abs=1e-12)
+    part = np.array([0.45 * low, 0.45 * high, 0.1 * novel])
+    assert post.situation(0) == pytest.approx(part / part.sum(), abs=1e-12)
+    assert post.situation(1) is None  # context 1 unseen
+    # Without evidence: the priors.
+    assert ConventionPosterior([LOW, HIGH], bandit_context).hypotheses() == pytest.approx([0.25, 0.25, 0.5])
+
+
+def test_rule_moves_tell_conventions_apart_from_nothing() -> None:
+    # Contexts 2 and 3: both known conventions pull the same arm, so only recombination's share can move.
+    post = ConventionPosterior([LOW, HIGH], bandit_context)
+    post.observe(*moves(LOW, [2, 3, 2, 3]))
+    h = post.hypotheses()
+    assert h[0] == pytest.approx(h[1])
+
+
+def test_a_whole_known_convention_is_identified_and_a_recombined_one_is_not_taken_for_one() -> None:
+    post = ConventionPosterior([LOW, HIGH], bandit_context)
+    post.observe(*moves(HIGH, [0, 1, 2, 0, 1]))
+    h = post.hypotheses()
+    # Recombination explains it too, at a price of 0.45 per symmetric context (its chance of "high" there),
+    # which repeated moves in a seen context do not raise: Occam's razor, bounded by 2 symmetric contexts.
+    assert h[1] > 0.7 and h[0] < 1e-3
+    assert post.situation(0).argmax() == 1 and post.situation(1).argmax() == 1
+    mixed = BanditConventionPartner("mixed", [4, 1, 2, 3])  # high in context 0, low in context 1: neither whole
+    post = ConventionPosterior([LOW, HIGH], bandit_context)
+    post.observe(*moves(mixed, [0, 1, 0, 1]))
+    h = post.hypotheses()
+    assert h[2] > 0.95
+    assert post.situation(0).argmax() == 1 and post.situation(1).argmax() == 0
+
+
+def test_the_player_answers_by_situation_and_falls_back_where_no_convention_fits() -> None:
+    # Heads: on the bandit the best answer to a convention is the convention itself.
+    mixed = BanditConventionPartner("mixed", [4, 1, 2, 3])
+    adapting = BanditConventionPartner("adapting", [6, 7, 2, 3])  # stands for the adapting head
+    post = ConventionPosterior([LOW, HIGH], bandit_context)
+    post.observe(*moves(mixed, [0, 1, 0, 1]))
+    probs = PosteriorPlayer("ego", post, [LOW, HIGH], adapting).action_probs(ONE_HOT, ALL_ARMS)
+    assert probs[0, 4] > 0.95 and probs[1, 1] > 0.95  # the convention each seen context follows
+    assert probs[2, 2] == pytest.approx(1.0) and probs.sum(axis=1) == pytest.approx(np.ones(4))
+    # A partner pulling an arm no training partner pulls in context 0: a novel convention there.
+    odd = BanditConventionPartner("odd", [6, 1, 2, 3])
+    post = ConventionPosterior([LOW, HIGH], bandit_context)
+    post.observe(*moves(odd, [0, 0, 1]))
+    assert post.situation(0)[-1] > 0.95
+    probs = PosteriorPlayer("ego", post, [LOW, HIGH], adapting).action_probs(ONE_HOT, ALL_ARMS)
+    assert probs[0, 6] > 0.95  # the adapting head's answer
+    # Unseen contexts are the adapting head's (under recombination) or the whole conventions' (prior mixture).
+    fresh = PosteriorPlayer("ego", ConventionPosterior([LOW, HIGH], bandit_context), [LOW, HIGH], adapting).action_probs(ONE_HOT, ALL_ARMS)
+    assert fresh[0, [0, 4, 6]] == pytest.approx([0.25, 0.25, 0.5])
+
+
+def test_sampled_play_draws_from_the_mixture() -> None:
+    post = ConventionPosterior([LOW, HIGH], bandit_context)
+    player = PosteriorPlayer("ego", post, [LOW, HIGH], BanditConventionPartner("adapting", [6, 7, 2, 3]), seed=3)
+    arms = []
+    for _ in range(4000):
+        player.start_episode()
+        arms.append(player.act(ONE_HOT[0], ALL_ARMS[0]))
+    freq = np.bincount(arms, minlength=8) / len(arms)
+    assert freq[[0, 4, 6]] == pytest.approx([0.25, 0.25, 0.5], abs=0.03)
+
+
+def test_blocks_partners_are_identified_from_their_moves_within_an_episode() -> None:
+    # Whole conventions only (blocks has no situation key). The ego heads are the leaders of each permutation.
+    perms = [list(p) for p in derangements()[:4]]
+    models = [PermutationPartner(f"p{i}", p) for i, p in enumerate(perms)]
+    leaders = [BlocksLeader(f"l{i}", p) for i, p in enumerate(perms)]
+    player = PosteriorPlayer("ego", ConventionPosterior(models, None), leaders, RandomLegalPartner(seed=0), seed=1)
+    seats = {"player_0": player, "player_1": PermutationPartner("new", perms[2])}
+    scores = [score for score, _ in itertools.islice(episode_stream(envs.make("blocks"), seats, seed=0), 40)]
+    # Each episode starts from the (empty) evidence and learns within it: the partner's one telling move
+    # (blue after red) comes after the ego's signal, so episodes still score less than the leader's 20.
+    assert player._live.hypotheses()[2] > 0.5
+    assert 0 < np.mean(scores) < 20
+
+
+def test_untrainable_settings_are_refused() -> None:
+    with pytest.raises(ValueError, match="head_init 'posterior' needs the trained ego's heads"):
+        AdaptConfig(runs=["r"], method="scratch", head_init="posterior")
+    with pytest.raises(ValueError, match="recombined"):
+        AdaptConfig(runs=["r"], head_init="posterior", posterior={"recombined": 1.5})
+    with pytest.raises(ValueError, match="at least one known partner"):
+        ConventionPosterior([], None)
+
+
+def test_adapting_to_a_training_convention_plays_its_head_after_one_update(bandit_egos, tmp_path) -> None:
+    # The new partner is a training partner: its moves in one update of 16 steps identify its convention
+    # (whole or context by context), and the ego plays it at once; the fresh head would still play the marginals.
+    trial = Path(bandit_egos["bandit-s2-hand"].path)
+    raw = {"name": "p", "runs": [str(trial)], "split": "train", "partners": ["hand-train-2"], "head_init": "posterior", "steps": 64}
+    curves = run_adaptation(raw, out=tmp_path, storage=tmp_path / "runs")
+    assert curves["steps"].tolist() == [0, 16, 32, 48, 64]
+    assert abs(curves["exact_return"].iloc[0] - 0.75) < 0.05  # the prior: half the symmetric contexts right
+    assert (curves["exact_return"].iloc[1:] >= 0.95).all()
+    assert "picked" not in curves or curves["picked"].isna().all()  # 2 symmetric contexts never make a whole convention certain
+    # With a lower bar the near-certain convention's head (and its task module) restart the adapting ego,
+    # which then plays it and keeps it under PPO.
+    raw = {**raw, "name": "q", "posterior": {"handover": 0.6}}
+    curves = run_adaptation(raw, out=tmp_path, storage=tmp_path / "runs")
+    assert (curves["exact_return"].iloc[1:] >= 0.95).all()
+    (trial_rows,) = [pd.read_csv(f) for f in (tmp_path / "runs" / "adapt-q").glob("*/curves.csv")]
+    assert trial_rows["picked"].dropna().unique().tolist() == ["ego@hand-train-2"]
+
+
+@pytest.fixture(scope="module")
+def narrow_ego(ray_session, tmp_path_factory) -> tuple[str, Path]:
+    """An ego trained with two partners that both pull arm 0 in context 0; its test partner pulls arm 4 there (novel)."""
+    folder = tmp_path_factory.mktemp("narrow")
+    pop = from_partners(
+        "narrow", "bandit", {"symmetric": 2},
+        train=[BanditConventionPartner("a", [0, 1, 2, 3]), BanditConventionPartner("b", [0, 5, 2, 3])],
+        test=[BanditConventionPartner("novel", [4, 1, 2, 3])],
+    )
+    manifest = folder / "narrow.json"
+    pop.save(manifest)
+    raw = experiment.load("tune_configs/bandit_modular.yaml", ["name=narrow", f"population={manifest}", "run.timesteps=4096"])
+    results = run(raw, storage=folder / "runs")
+    assert not results.errors
+    return str(trial_folders(results[0].path)[0]), folder
+
+
+def test_a_partner_following_no_known_convention_falls_back_to_fine_tuning(narrow_ego, tmp_path) -> None:
+    trial, _ = narrow_ego
+    common = {"runs": [trial], "split": "test", "steps": 480, "seed": 5}
+    plain = run_adaptation({"name": "fresh", **common}, out=tmp_path, storage=tmp_path / "runs")
+    post = run_adaptation({"name": "posterior", "head_init": "posterior", **common}, out=tmp_path, storage=tmp_path / "runs")
+    assert post["steps"].tolist() == plain["steps"].tolist()
+    assert "picked" not in post or post["picked"].isna().all()  # no known convention is handed over
+    # Context 0 is novel: the posterior leaves it to the adapting head, which PPO trains as the plain method's
+    # (same seeds); context 1 follows training partner "a", whose head the posterior plays from the first update.
+    assert post["exact_return"].iloc[-1] >= plain["exact_return"].iloc[-1] - 0.02
+    assert plain["exact_return"].iloc[-1] > plain["exact_return"].iloc[0] + 0.1  # the plain method did learn
