@@ -8,6 +8,7 @@ from typing import Iterable
 
 from analysis.report.context import Context
 from analysis.report.sections.adaptation import adaptation_section
+from analysis.report.sections.beyond import beyond_section
 from analysis.report.sections.differences import differences_section
 from analysis.report.sections.marginals import marginals_section
 from analysis.report.sections.selfplay import selfplay_section
@@ -34,6 +35,7 @@ def build_report(root: str | Path, out: str | Path | None = None, user_study: It
     body = [
         status_section(ctx),
         adaptation_section(ctx),
+        beyond_section(ctx),
         zeroshot_section(ctx),
         marginals_section(ctx),
         user_study_section(ctx),

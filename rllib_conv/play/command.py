@@ -55,6 +55,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seat", type=int, choices=[1, 2], default=None, help="the person's seat in agent conditions (default: opposite the trained ego)")
     p.add_argument("--step-size", type=float, default=3.0, help="the agent's adaptation step size eta (default 3: one observed pick -> 0.95)")
     p.add_argument("--greedy", action="store_true", help="the agent plays its most likely action instead of sampling")
+    p.add_argument(
+        "--adapter", choices=["table", "posterior"], default="table",
+        help="how agents adapt between tries: table (the paper's partner module, default) or posterior: also by a posterior over "
+        "which training partner's convention the person follows, playing that partner's head (bandit; not in the paper)",
+    )
     p.add_argument("--games", type=int, default=5, help="blocks: games per session (default 5)")
     p.add_argument("--seed", type=int, default=0, help="seed of the assignment's tie-breaks, the agent's choices and the blocks goals")
     p.add_argument("--pair-timeout", type=float, default=300.0, help="seconds a participant of the human condition waits for a partner (default 300)")
@@ -96,6 +101,7 @@ def run(args: argparse.Namespace) -> None:
         step_size=args.step_size,
         greedy=args.greedy,
         seed=args.seed,
+        adapter=args.adapter,
         games=args.games,
         person_seat=args.seat,
         pair_timeout=args.pair_timeout,

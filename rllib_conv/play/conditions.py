@@ -26,6 +26,8 @@ HUMAN = "human"
 DEFAULT_AGENT = "agent"
 ORACLE = "oracle"  # --agent NAME=oracle: the bandit's true marginals as task module (piloting without training)
 TEST_PRIORS: tuple[str, ...] = ("oracle", "uniform")
+# How agents adapt: the partner table (`agent.py`, the paper's), or the convention posterior around it (`convention_agent.py`).
+ADAPTERS: tuple[str, ...] = ("table", "posterior")
 NAME = re.compile(r"^[a-z][a-z0-9_-]{0,31}$")
 CODE = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
 DEFAULT_CONSENT = (
@@ -137,10 +139,16 @@ def _test_prior(test_run: str | None, test_prior: str, name: str) -> tuple[Any, 
     return uniform_prior, "Test task: uniform over the arms"
 
 
-def build_agent(name: str, run: str, game: str | None, test_run: str | None, test_prior: str, step_size: float, greedy: bool, seed: int) -> tuple[str, AgentSettings, bool]:
+def build_agent(
+    name: str, run: str, game: str | None, test_run: str | None, test_prior: str, step_size: float, greedy: bool, seed: int, adapter: str = "table"
+) -> tuple[str, AgentSettings, bool]:
     """(game, settings, new_task) of the agent `name` with its task module from `run` (or the oracle)."""
     adapt = f"adapts with step size {step_size:g}{', greedy' if greedy else ''}"
+    if adapter == "posterior":
+        adapt += ", and by a posterior over its training partners' conventions (not in the paper)"
     if run == ORACLE:
+        if adapter == "posterior":
+            raise ValueError(f"--adapter posterior: --agent {name}=oracle has no training partners' heads; give a trained modular run")
         if game not in (None, "bandit"):
             raise ValueError(f"--agent {name}=oracle: the oracle agent is the bandit's true marginals; --game is {game!r}")
         test, test_words = _test_prior(test_run, test_prior, name)
@@ -148,7 +156,7 @@ def build_agent(name: str, run: str, game: str | None, test_run: str | None, tes
         description = f"oracle task module (the true marginals), {adapt}; {test_words}"
         return "bandit", AgentSettings(priors=priors, ego_seat=1, step_size=step_size, greedy=greedy, seed=seed, description=description), False
 
-    from rllib_conv.play.ego_run import load_run, require_user_study  # torch and Ray load only with a run
+    from rllib_conv.play.ego_run import convention_source, load_run, require_user_study  # torch and Ray load only with a run
 
     what = "RUN" if name == DEFAULT_AGENT else f"--agent {name}"
     ego = load_run(run, what)
@@ -158,6 +166,9 @@ def build_agent(name: str, run: str, game: str | None, test_run: str | None, tes
     if game not in GAMES:
         raise ValueError(f"{what} {str(ego.trial)!r} was trained on {game!r}; play supports {list(GAMES)}")
     new_task = False
+    if adapter == "posterior" and game != "bandit":
+        raise ValueError(f"--adapter posterior: the bandit only (a blocks hindsight target is not the person's move); {what} plays {game!r}")
+    conventions = convention_source(ego, what) if adapter == "posterior" else None
     if game == "bandit":
         require_user_study(ego, new_task=False, what=what)
         test, test_words = _test_prior(test_run, test_prior, name)
@@ -169,7 +180,7 @@ def build_agent(name: str, run: str, game: str | None, test_run: str | None, tes
         new_task = bool(ego.env_config.get("new_task", False))
         priors = {"task": ego.prior}
         description = f"{ego.describe()}; {adapt}"
-    settings = AgentSettings(priors=priors, ego_seat=ego.ego_seat, step_size=step_size, greedy=greedy, seed=seed, description=description)
+    settings = AgentSettings(priors=priors, ego_seat=ego.ego_seat, step_size=step_size, greedy=greedy, seed=seed, description=description, conventions=conventions)
     return game, settings, new_task
 
 
@@ -184,6 +195,7 @@ def build_settings(
     step_size: float = 3.0,
     greedy: bool = False,
     seed: int = 0,
+    adapter: str = "table",
     **options: Any,
 ) -> StudySettings:
     """The study's settings from the `play` arguments (see its --help); ValueError naming the bad argument.
@@ -192,9 +204,12 @@ def build_settings(
     RUN must be an ego trained on the user-study Train task; on the Test task the prior is
     the task module of its `--test-run NAME=RUN2` or, without one, `test_prior` ("oracle":
     the true marginals; "uniform"). Blocks: RUN's task is the session's. `conditions`
-    (comma-separated) defaults to every agent, or `human` without any. `options` go to
+    (comma-separated) defaults to every agent, or `human` without any. `adapter` "posterior"
+    (bandit) has every agent adapt by the convention posterior too. `options` go to
     `StudySettings` as they are (tries, games, person_seat, timeouts, completion code, consent).
     """
+    if adapter not in ADAPTERS:
+        raise ValueError(f"--adapter must be one of {list(ADAPTERS)}, got {adapter!r}")
     if test_prior not in TEST_PRIORS:
         raise ValueError(f"--test-prior must be one of {list(TEST_PRIORS)}, got {test_prior!r}")
     if not (isinstance(step_size, (int, float)) and step_size > 0):
@@ -226,7 +241,7 @@ def build_settings(
         if name == HUMAN:
             built[name] = Condition(HUMAN, None, "two participants paired with each other")
             continue
-        agent_game, agent, new_task = build_agent(name, runs[name], game, tests.get(name), test_prior, step_size, greedy, seed)
+        agent_game, agent, new_task = build_agent(name, runs[name], game, tests.get(name), test_prior, step_size, greedy, seed, adapter)
         game = game or agent_game
         if agent_game != game:
             raise ValueError(f"--agent {name}: trained on {agent_game!r}, but the study plays {game!r}")

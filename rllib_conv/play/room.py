@@ -99,6 +99,8 @@ class AgentSettings:
     greedy: bool = False
     seed: int = 0
     description: str = "agent"
+    # `--adapter posterior` (bandit): a `convention_agent.ConventionSource`, whose agent wraps the adapting one.
+    conventions: Any = None
 
 
 class Room:

@@ -178,6 +178,8 @@ class Study:
             else:
                 prior = responder_prior  # no trained module for P2: the scripted responder (see agent.py)
             agent = AdaptiveAgent(prior, step_size=a.step_size, greedy=a.greedy, seed=[a.seed, record.pair])
+            if a.conventions is not None:
+                agent = a.conventions.agent(agent, prior, seed=[a.seed, record.pair, 1])
         if s.game == "bandit":
             return BanditRoom(record.pair, self.store, agent, record.agent_seat, condition.agent.priors if agent else None, tries=s.tries, call_later=self._call_later)
         return BlocksRoom(record.pair, self.store, agent, record.agent_seat, s.new_task, s.games, s.seed, s.agent_delay, call_later=self._call_later)

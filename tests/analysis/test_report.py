@@ -11,6 +11,7 @@ import pytest
 from analysis.report import build_report
 from analysis.report.sections.status import trained_steps
 from analysis.report.verdicts import CONTRADICTED, NOT_SHOWN, SUPPORTED, VERDICTS, ClaimCheck, Difference, all_hold
+from analysis.summaries import bayes_optimal_return
 
 FIXTURE = Path(__file__).parent / "fixtures" / "repro"
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
@@ -251,6 +252,29 @@ def test_adaptation_claims_are_paired_over_seeds_on_the_papers_method(tmp_path: 
     summary = text.split("## Where ours differs from the paper, and why")[1].split("## Adapting")[0]
     # The three above, not shown, and the user study's two claims, supported: the tallies count exactly the verdicts.
     assert "Claims checked: 5 (2 supported, 3 not shown, 0 contradicted)" in summary
+
+
+def test_the_convention_posterior_is_judged_against_its_own_targets(tmp_path: Path) -> None:
+    write_bandit_adaptation(tmp_path / "repro")
+    game = tmp_path / "repro" / "bandit"
+    # Arms 2: the posterior returns exactly the Bayes-optimal adapter's expectation at steps 0 and 16 on every unit
+    # (0.75, and 0.5 + 0.5 * (1 - 0.75**16 / 2) = 0.99749: AUC 0.874); Arms 3: 0.02 below its Bayes-optimal returns.
+    for population, symmetric, offset in (("bandit-s2-hand", 2, 0.0), ("bandit-s3-hand", 3, -0.02)):
+        rows = ["run,method,lam,z_dim,seed,partner,steps,mean_return,stderr,exact_return"]
+        for seed in range(3):
+            for k in range(2):
+                for step in (0, 16):
+                    v = bayes_optimal_return(4, symmetric, step) + offset
+                    rows.append(f"runs/{population}__beyond-posterior/T{seed},modular,0.5,30,{seed},hand-test-{k},{step},{v},0.01,{v}")
+        (game / "adaptation" / f"{population}__beyond-posterior.csv").write_text("\n".join(rows) + "\n")
+    text = build_report(tmp_path / "repro", tmp_path / "out").read_text()
+    beyond = text.split("## Beyond the paper: the convention-posterior adapter")[1]
+    name = "convention posterior (beyond the paper; ours λ=0.5 egos)"
+    assert f"| Arms 2 | AUC within 0.01 of the Bayes-optimal adapter | supported | {name} − Bayes-optimal (0.874) +0.000 [+0.000, +0.000] (n=3) |" in beyond
+    assert f"| Arms 3 | AUC within 0.01 of the Bayes-optimal adapter | contradicted | {name} − Bayes-optimal" in beyond
+    assert "![beyond_posterior](figures/beyond_posterior.png)" in beyond
+    # Not a claim of the paper: the tallies are those without it.
+    assert "Claims checked: 5 (2 supported, 3 not shown, 0 contradicted)" in text
 
 
 def test_empty_root_and_recorded_sessions(tmp_path: Path) -> None:

@@ -28,7 +28,7 @@ CONTEXTS = 3
 ALL = np.ones(ARMS, dtype=np.int8)
 TRAIN = bandit_oracle_prior(user_study_prizes(new_task=False))
 TEST = bandit_oracle_prior(user_study_prizes(new_task=True))
-B, C = 1, 2  # symmetric contexts of the Train task: good arms (2, 3) and (1, 3)
+A_CONTEXT, B, C = 0, 1, 2  # A has one good arm; symmetric contexts of the Train task: good arms (2, 3) and (1, 3)
 
 
 def sigmoid(x: float) -> float:
@@ -189,3 +189,57 @@ def test_p2_responder_prior_and_its_update_from_the_revealed_goal() -> None:
     agent = AdaptiveAgent(responder_prior, ETA, seed=0)
     agent.learn(targets)
     assert agent.policy(obs, mask)[2] == pytest.approx(math.exp(ETA) / (math.exp(ETA) + 2), abs=1e-5)  # 0.909
+
+
+# --- the convention posterior around the agent (`--adapter posterior`, not in the paper) ---------
+
+
+def convention_agent(seed: int = 0):
+    from rllib_conv.partners.bandit import BanditConventionPartner
+    from rllib_conv.play.convention_agent import ConventionSource
+
+    # Two training partners of the Train task, each the other's opposite in contexts B and C; on the
+    # bandit a partner's best response is its own convention, so they stand in for the ego's heads too.
+    low, high = BanditConventionPartner("low", [0, 2, 1]), BanditConventionPartner("high", [0, 3, 3])
+    return ConventionSource(models=[low, high], known=[low, high]).agent(AdaptiveAgent(TRAIN, ETA, seed=seed), TRAIN, seed=seed)
+
+
+def test_the_convention_agent_plays_a_recognised_convention_at_once_and_the_table_elsewhere() -> None:
+    agent = convention_agent()
+    np.testing.assert_allclose(policy(agent, B), [0, 0, 0.5, 0.5], atol=1e-5)  # no evidence: the marginals
+    observe(agent, B, 3)  # "high" in B
+    # By hand (4 arms, epsilon 0.05): the pick's likelihood is 0.0125 under "low", 0.9625 under "high", 1/4 novel.
+    low, high, novel = 0.0125, 0.9625, 0.25
+    whole = np.array([0.25 * low, 0.25 * high, 0.5 * (0.45 * low + 0.45 * high + 0.1 * novel)])
+    whole /= whole.sum()
+    part = np.array([0.45 * low, 0.45 * high, 0.1 * novel]) / (0.45 * low + 0.45 * high + 0.1 * novel)
+    table = agent.table.policy(bandit_observation(B, CONTEXTS), ALL)[3]
+    assert table == pytest.approx(sigmoid(ETA), abs=1e-5)  # the table alone: 0.953
+    expected = whole[1] + whole[2] * (part[1] + part[2] * table)
+    assert policy(agent, B)[3] == pytest.approx(expected, abs=1e-9)
+    assert expected > 0.98
+    # C unseen: whole "high" answers 3; recombination leaves C to the table (the marginals, 1/2 on arm 3).
+    p = policy(agent, C)
+    post = agent.posterior.hypotheses()
+    assert p[3] == pytest.approx(post[1] + post[2] * 0.5 + post[0] * 0.0, abs=1e-5) and p[3] > 0.6
+    # A pick no training partner makes in B (arm 1: legal, not good): a novel convention there, left to the table.
+    odd = convention_agent()
+    for _ in range(3):
+        observe(odd, B, 1)
+    assert odd.posterior.situation(B)[-1] > 0.95
+    np.testing.assert_allclose(policy(odd, B), odd.table.policy(bandit_observation(B, CONTEXTS), ALL), atol=1e-3)
+
+
+def test_on_another_task_the_convention_agent_is_the_paper_agent_with_its_table() -> None:
+    agent = convention_agent()
+    observe(agent, C, 1)
+    agent.prior = TEST
+    reference = AdaptiveAgent(TRAIN, ETA, seed=0)
+    observe(reference, C, 1)
+    reference.prior = TEST
+    for context in range(CONTEXTS):
+        np.testing.assert_allclose(policy(agent, context), policy(reference, context), atol=1e-12)
+    evidence = agent.posterior.hypotheses().copy()
+    observe(agent, B, 2)  # a Test-task pick: into the table only
+    np.testing.assert_allclose(agent.posterior.hypotheses(), evidence)
+    assert agent.act(bandit_observation(A_CONTEXT, CONTEXTS), ALL) == 2  # Test A's one good arm

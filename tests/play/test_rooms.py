@@ -14,10 +14,12 @@ import pytest
 
 from rllib_conv.common.user_study_table import USER_STUDY_GOOD_ARMS, load_user_study
 from rllib_conv.envs.bandit import user_study_prizes
+from rllib_conv.partners.bandit import BanditConventionPartner
 from rllib_conv.partners.blocks import PermutationPartner
 from rllib_conv.play.agent import AdaptiveAgent, bandit_oracle_prior, responder_prior, uniform_prior
 from rllib_conv.play.bandit_room import BanditRoom
 from rllib_conv.play.blocks_room import BlocksRoom
+from rllib_conv.play.convention_agent import ConventionSource
 from rllib_conv.play.export import BLOCKS_COLUMNS, table_csv
 from rllib_conv.play.room import PlayError
 from rllib_conv.play.store import DB_FILE, Participant, Store
@@ -199,6 +201,21 @@ def test_agent_commits_first_adapts_to_the_person_and_carries_conventions_to_the
     assert by["train", "A", 1] == 1 and by["test", "A", 1] == 1
     assert by["test", "C", 1] == 1  # Train-C's convention reused at once on the same symmetry
     assert all(by["test", "B", t] == 1 for t in range(2, 6))
+
+
+def test_a_convention_agent_recognises_a_training_partners_convention_before_the_context_it_next_meets(store: Store) -> None:
+    # `--adapter posterior` (not in the paper). Training partners "low" and "high" (each other's opposite in
+    # B and C); the person follows "high". After B's tries the posterior names "high", so the greedy agent
+    # picks its arm in C at the first try; the table alone would still split C's two good arms 1/2, 1/2.
+    low, high = BanditConventionPartner("low", [0, 2, 1]), BanditConventionPartner("high", [0, 3, 3])
+    source = ConventionSource(models=[low, high], known=[low, high])
+    pair = seat_pair(store, "agent", agent_seat=1)
+    room = BanditRoom(pair, store, source.agent(AdaptiveAgent(PRIORS["train"], greedy=True, seed=0), PRIORS["train"], seed=0), 1, PRIORS)
+    room.start()
+    for i, (task, context, _) in enumerate(SCHEDULE[:15]):
+        room.move(2, {"arm": high.arms["ABC".index(context)] + 1, "step": i})  # the page counts arms from 1
+    by = exported(store).set_index(["task", "context", "try"])["coordinated"]
+    assert by["train", "C", 1] == 1 and all(by["train", "B", t] == 1 for t in range(2, 6))
 
 
 def test_a_restored_agent_has_learnt_exactly_what_it_had(store: Store, tmp_path: Path) -> None:

@@ -30,6 +30,17 @@ def test_a_trained_ego_gives_the_prior_and_its_seat(study_ego: Path, tmp_path: P
     assert [c.kind for c in two.conditions] == ["agent", "agent", "human"]
 
 
+def test_the_posterior_adapter_reads_the_runs_heads_and_training_partners(study_ego: Path) -> None:
+    agent = build_settings(study_ego, adapter="posterior").condition("agent").agent
+    assert len(agent.conventions.models) == len(agent.conventions.known) == 24  # the user-study training pairs
+    assert "a posterior over its training partners' conventions (not in the paper)" in agent.description
+    assert build_settings(study_ego).condition("agent").agent.conventions is None  # the paper's agent by default
+    with pytest.raises(ValueError, match="--adapter posterior: --agent baseline=oracle has no training partners' heads"):
+        build_settings(agents=["baseline=oracle"], adapter="posterior")
+    with pytest.raises(ValueError, match="--adapter must be one of \\['table', 'posterior'\\], got 'bayes'"):
+        build_settings(study_ego, adapter="bayes")
+
+
 def test_runs_for_the_wrong_task_or_game_are_refused(study_ego: Path, tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="--test-run agent .* needs an ego trained on the user-study bandit's Test task .*bandit-user-study-newtask"):
         build_settings(study_ego, test_runs=[str(study_ego)])

@@ -1,0 +1,111 @@
+"""Section: beyond the paper, the convention-posterior adapter (`beyond-posterior`) beside the paper's method, against its targets.
+
+Its targets (the project's, not the paper's), each judged on paired seed-level intervals:
+- bandit, Arms 2/3/4, hand-designed and self-play partners: AUC within 0.01 of the Bayes-optimal
+  adapter's at the same evaluation points (the whole interval of posterior − Bayes above −0.01);
+- user-study partners: above every other method;
+- blocks, self-play partners: above BaselineAgg and First-Order MAML; hand-designed partners: no worse
+  than ours λ=0.5 (the paired interval not wholly below 0);
+- Hanabi: above ours λ=0.5 and BaselineAgg.
+"""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pandas as pd
+
+from analysis import figures
+from analysis.paper import label_name, population_name
+from analysis.report.context import PAPER_METHOD, Context
+from analysis.report.formatting import digits, fmt_summary, md_table
+from analysis.report.verdicts import CONTRADICTED, NOT_SHOWN, SUPPORTED, Difference, advantage, beats_all
+from analysis.summaries import adaptation_auc, bayes_optimal_return, mean_ci, seed_means, seed_summary
+
+POSTERIOR = "beyond-posterior"
+WITHIN = ("partner",)
+BAYES_MARGIN = 0.01
+BANDIT_CONTEXTS = 4
+SHOWN_BESIDE = (PAPER_METHOD, "agg", "maml", "oracle")  # drawn beside the posterior
+
+
+def symmetric_contexts(population: str) -> int | None:
+    """m of a paper-task bandit population (`bandit-s<m>-...`), whose Bayes-optimal adapter is known in closed form; None otherwise."""
+    match = re.match(r"bandit-s(\d)-(hand|selfplay)$", population)
+    return int(match.group(1)) if match else None
+
+
+def bayes_gap(curves: pd.DataFrame, symmetric: int) -> Difference:
+    """Posterior AUC − Bayes-optimal AUC per seed (the latter at the same evaluation points), with its interval over seeds."""
+    bayes = float(np.mean([bayes_optimal_return(BANDIT_CONTEXTS, symmetric, int(s)) for s in sorted(curves["steps"].unique())]))
+    auc = seed_means(adaptation_auc(curves), [], "auc")["auc"].to_numpy() - bayes
+    return Difference(label_name(POSTERIOR), f"Bayes-optimal ({bayes:.3f})", *mean_ci(auc))
+
+
+def _target(ctx: Context, population: str, auc: pd.DataFrame) -> tuple[str, str, str] | None:
+    """(target, verdict, evidence) for one population, or None if it has no target."""
+    game = ctx.game_of_population(population)
+    places = digits(game)
+    labels = set(auc["label"])
+    symmetric = symmetric_contexts(population)
+    if symmetric is not None:
+        gap = bayes_gap(ctx.adaptation[(ctx.adaptation["population"] == population) & (ctx.adaptation["label"] == POSTERIOR)], symmetric)
+        met = SUPPORTED if gap.lo > -BAYES_MARGIN else CONTRADICTED if gap.hi < -BAYES_MARGIN else NOT_SHOWN
+        return f"AUC within {BAYES_MARGIN} of the Bayes-optimal adapter", met, gap.text(places)
+    if population == "bandit-user-study":
+        return "above every method", *beats_all(auc, POSTERIOR, sorted(labels - {POSTERIOR}), "auc", WITHIN, places)
+    if game == "blocks" and "selfplay" in population:
+        return "above BaselineAgg and First-Order MAML", *beats_all(auc, POSTERIOR, [x for x in ("agg", "maml") if x in labels], "auc", WITHIN, places)
+    if game == "blocks":
+        diff = advantage(auc, POSTERIOR, PAPER_METHOD, "auc", WITHIN)
+        return f"no worse than {label_name(PAPER_METHOD)}", (CONTRADICTED if diff.hi < 0 else SUPPORTED if np.isfinite(diff.lo) else NOT_SHOWN), diff.text(places)
+    if game == "hanabi":
+        return "above ours λ=0.5 and BaselineAgg", *beats_all(auc, POSTERIOR, [x for x in (PAPER_METHOD, "agg") if x in labels], "auc", WITHIN, places)
+    return None
+
+
+def beyond_section(ctx: Context) -> str:
+    """The convention posterior beside the paper's method: curves, start/AUC table, and its targets (empty if it was not run)."""
+    if ctx.adaptation.empty or POSTERIOR not in set(ctx.adaptation["label"]):
+        return ""
+    lines = [
+        "## Beyond the paper: the convention-posterior adapter",
+        "",
+        f"`{POSTERIOR}` is not the paper's method: it adapts the ego trained as ours λ=0.5, but plays by a posterior over which "
+        "training partner's convention the new partner follows, whole or situation by situation, from the partner's moves "
+        "(`rllib_conv/training/convention_posterior.py`; docs/adapting.md). Its targets are this project's, judged by "
+        "paired seed-level intervals; they never change a verdict on the paper.",
+    ]
+    data = ctx.adaptation[ctx.adaptation["population"].isin(ctx.adaptation.loc[ctx.adaptation["label"] == POSTERIOR, "population"].unique())]
+    auc = adaptation_auc(data)
+    shown = data[data["label"].isin([POSTERIOR, *SHOWN_BESIDE])]
+    populations = sorted(shown["population"].unique())
+    fig = figures.adaptation_curves(shown, panels=populations)
+    lines += ["", ctx.save(fig, "beyond_posterior", figures.band_caption(shown, "Lines: mean over seeds; bands"))]
+
+    keys = ["population", "label"]
+    start, area = (seed_summary(auc, keys, column).set_index(keys) for column in ("start", "auc"))
+    rows = []
+    for population in populations:
+        d = digits(ctx.game_of_population(population))
+        for label in [POSTERIOR, *SHOWN_BESIDE]:
+            if (population, label) in area.index:
+                rows.append([population_name(population), label_name(label), fmt_summary(start.loc[(population, label)], d), fmt_summary(area.loc[(population, label)], d)])
+    lines += ["", md_table(["population", "method", "return at step 0", "AUC"], rows)]
+
+    targets = []
+    for population in populations:
+        found = _target(ctx, population, auc[auc["population"] == population])
+        if found is not None:
+            targets.append([population_name(population), *found])
+    lines += [
+        "",
+        "### Its targets",
+        "",
+        "Supported: the whole 95% interval over seeds is on the target's side (for the Bayes-optimal target: above −0.01; for "
+        "'no worse': not wholly below 0); contradicted: wholly on the other side; not shown otherwise.",
+        "",
+        md_table(["population", "target", "verdict", "evidence"], targets),
+    ]
+    return "\n".join(lines)
