@@ -8,8 +8,8 @@ env to RLlib/Tune as a `MultiAgentEnv`.
 """
 
 from rllib_conv.envs.bandit import CollaborativeBanditEnv
-from rllib_conv.envs.convention_keys import convention_key, register_convention_key
 from rllib_conv.envs.blocks import BlockPlacingEnv
+from rllib_conv.envs.convention_keys import convention_key, register_convention_key
 from rllib_conv.envs.hanabi import HanabiEnv
 from rllib_conv.envs.registry import make, names, register
 

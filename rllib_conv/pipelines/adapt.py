@@ -43,13 +43,13 @@ from rllib_conv.envs.defaults import ADAPT_DEFAULTS
 from rllib_conv.modules import ego_id, partner_id
 from rllib_conv.modules.multi import AGG_HEAD_ID, TASK_ID, replica_id
 from rllib_conv.modules.stacked_multi import STACK_ID
+from rllib_conv.partners.kinds import gives_action_probs
 from rllib_conv.pipelines.adapt_config import AdaptConfig
 from rllib_conv.training.algorithm import Replica, build_algorithm, packing_key
 from rllib_conv.training.callbacks import STEPS_DONE, STEPS_TOTAL, StageProgress
 from rllib_conv.training.checkpoints import last_checkpoint
-from rllib_conv.training.ego_setup import EgoSetup, setup_for
-from rllib_conv.partners.kinds import gives_action_probs
 from rllib_conv.training.convention_posterior import ConventionPosterior, PosteriorPlayer
+from rllib_conv.training.ego_setup import EgoSetup, setup_for
 from rllib_conv.training.evaluate import ego_head_partner, load_module, player_return
 from rllib_conv.training.experiment import ExperimentConfig, trial_config
 from rllib_conv.training.head_pick import HeadPick, pick_head

@@ -9,7 +9,6 @@ from pydantic import Field, PositiveInt, confloat, model_validator
 from rllib_conv.common.config_files import Strict
 from rllib_conv.training.settings import FolderName
 
-
 Fraction = confloat(gt=0.0, lt=1.0)
 
 

@@ -143,7 +143,8 @@ class PosteriorPlayer(Partner):
     starts from `posterior` (the evidence of the env steps played so far) and updates a
     copy with the partner's moves in the episode. The player samples a hypothesis per
     episode and keeps it while its posterior stays above `switch` times the best one's;
-    under recombination it samples a convention per situation. `action_probs` is the
+    under recombination it samples, at each move, a convention from that situation's
+    posterior. `action_probs` is the
     mixture this draws from before any move of the episode (exact on one-step games).
     """
 

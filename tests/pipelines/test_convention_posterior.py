@@ -10,6 +10,7 @@ import pandas as pd
 import pytest
 
 from rllib_conv import envs
+from rllib_conv.common.run_folders import trial_folders
 from rllib_conv.envs.convention_keys import bandit_context
 from rllib_conv.partners.bandit import BanditConventionPartner
 from rllib_conv.partners.blocks import BlocksLeader, PermutationPartner, derangements
@@ -20,7 +21,6 @@ from rllib_conv.pipelines.adapt import run_adaptation
 from rllib_conv.pipelines.adapt_config import AdaptConfig
 from rllib_conv.pipelines.train import run
 from rllib_conv.training import experiment
-from rllib_conv.common.run_folders import trial_folders
 from rllib_conv.training.convention_posterior import ConventionPosterior, PosteriorPlayer
 
 ONE_HOT = np.eye(4, dtype=np.float32)

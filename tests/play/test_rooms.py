@@ -212,7 +212,7 @@ def test_a_convention_agent_recognises_a_training_partners_convention_before_the
     pair = seat_pair(store, "agent", agent_seat=1)
     room = BanditRoom(pair, store, source.agent(AdaptiveAgent(PRIORS["train"], greedy=True, seed=0), PRIORS["train"], seed=0), 1, PRIORS)
     room.start()
-    for i, (task, context, _) in enumerate(SCHEDULE[:15]):
+    for i, (_, context, _) in enumerate(SCHEDULE[:15]):
         room.move(2, {"arm": high.arms["ABC".index(context)] + 1, "step": i})  # the page counts arms from 1
     by = exported(store).set_index(["task", "context", "try"])["coordinated"]
     assert by["train", "C", 1] == 1 and all(by["train", "B", t] == 1 for t in range(2, 6))
