@@ -12,10 +12,8 @@ form, `StackedEgoMultiRLModule`, whose replicas' IDs carry a suffix `#<r>` (`rep
 
 from __future__ import annotations
 
-from ray.rllib.core.rl_module.multi_rl_module import MultiRLModule
-from ray.rllib.core.rl_module.rl_module import RLModule
-
 from rllib_conv.modules.partner_head import PartnerHeadModule
+from rllib_conv.modules.shared_wiring import SharedWiringMultiRLModule
 from rllib_conv.modules.task_module import TaskModule
 
 TASK_ID = "task"
@@ -40,28 +38,13 @@ def replica_id(module_id: str, replica: int | None) -> str:
     return module_id if replica is None else f"{module_id}{REPLICA_SEPARATOR}{replica}"
 
 
-class ConventionMultiRLModule(MultiRLModule):
+class ConventionMultiRLModule(SharedWiringMultiRLModule):
     """MultiRLModule that wires every `PartnerHeadModule` to the shared `TaskModule`."""
 
-    def setup(self) -> None:
-        super().setup()
-        self._wire()
-
-    def add_module(self, module_id: str, module: RLModule, *, override: bool = False) -> None:
-        super().add_module(module_id, module, override=override)
-        self._wire()
-
-    def _wire(self) -> None:
-        task = self._rl_modules.get(TASK_ID)
-        for module in self._rl_modules.values():
-            if isinstance(module, PartnerHeadModule):
-                module.set_task(task)
+    SHARED_ID = TASK_ID
+    DEPENDENT = PartnerHeadModule
 
     @property
     def task(self) -> TaskModule:
         """The shared task module."""
         return self._rl_modules[TASK_ID]
-
-    def head_ids(self) -> list[str]:
-        """IDs of all ego heads, in insertion order."""
-        return [mid for mid, m in self._rl_modules.items() if isinstance(m, PartnerHeadModule)]

@@ -50,7 +50,7 @@ class PartnerHeadModule(TorchRLModule, ValueFunctionAPI):
             raise RuntimeError("PartnerHeadModule has no task module; build it inside a ConventionMultiRLModule")
         return self.__dict__["_task"]
 
-    def set_task(self, task: TaskModule) -> None:
+    def set_shared(self, task: TaskModule) -> None:
         """Point this head at the shared task module (not registered as a child)."""
         self.__dict__["_task"] = task
 

@@ -20,11 +20,10 @@ from typing import Any
 import torch
 from ray.rllib.core.columns import Columns
 from ray.rllib.core.rl_module.apis.value_function_api import ValueFunctionAPI
-from ray.rllib.core.rl_module.multi_rl_module import MultiRLModule
-from ray.rllib.core.rl_module.rl_module import RLModule
 from ray.rllib.core.rl_module.torch import TorchRLModule
 
 from rllib_conv.modules.ego_stack import EgoStack, pad_rows, unpad
+from rllib_conv.modules.shared_wiring import SharedWiringMultiRLModule
 from rllib_conv.modules.task_module import split_obs
 
 STACK_ID = "stack"
@@ -49,7 +48,7 @@ class HeadView(TorchRLModule, ValueFunctionAPI):
             raise RuntimeError("HeadView has no stack; build it inside a StackedEgoMultiRLModule")
         return self.__dict__["_stack"]
 
-    def set_stack(self, stack: EgoStack) -> None:
+    def set_shared(self, stack: EgoStack) -> None:
         """Point this view at the stack (not registered as a child)."""
         self.__dict__["_stack"] = stack
 
@@ -94,31 +93,16 @@ class StackedOutput:
     valid: torch.Tensor
 
 
-class StackedEgoMultiRLModule(MultiRLModule):
+class StackedEgoMultiRLModule(SharedWiringMultiRLModule):
     """MultiRLModule of K replica egos whose forward passes run every replica and head at once (see the module docstring)."""
 
-    def setup(self) -> None:
-        super().setup()
-        self._wire()
-
-    def add_module(self, module_id: str, module: RLModule, *, override: bool = False) -> None:
-        super().add_module(module_id, module, override=override)
-        self._wire()
-
-    def _wire(self) -> None:
-        stack = self._rl_modules.get(STACK_ID)
-        for module in self._rl_modules.values():
-            if isinstance(module, HeadView):
-                module.set_stack(stack)
+    SHARED_ID = STACK_ID
+    DEPENDENT = HeadView
 
     @property
     def stack(self) -> EgoStack:
         """The stacked weights of every replica."""
         return self._rl_modules[STACK_ID]
-
-    def head_ids(self) -> list[str]:
-        """IDs of all head views, in insertion order."""
-        return [mid for mid, m in self._rl_modules.items() if isinstance(m, HeadView)]
 
     # --- acting (env runners) ---------------------------------------------------------------------
 
