@@ -40,15 +40,20 @@ from rllib_conv.common.config_files import validate
 from rllib_conv.common.methods import method
 from rllib_conv.common.run_folders import ADAPT_PREFIX, RL_MODULE_DIR, trial_folders
 from rllib_conv.envs.defaults import ADAPT_DEFAULTS
-from rllib_conv.modules import ego_id, partner_id
+from rllib_conv.modules import partner_id
 from rllib_conv.modules.multi import AGG_HEAD_ID, TASK_ID, replica_id
 from rllib_conv.modules.stacked_multi import STACK_ID
-from rllib_conv.partners.kinds import gives_action_probs
 from rllib_conv.pipelines.adapt_config import AdaptConfig
 from rllib_conv.training.algorithm import Replica, build_algorithm, packing_key
 from rllib_conv.training.callbacks import STEPS_DONE, STEPS_TOTAL, StageProgress
 from rllib_conv.training.checkpoints import last_checkpoint
-from rllib_conv.training.convention_posterior import ConventionPosterior, PosteriorPlayer
+from rllib_conv.training.convention_posterior import (
+    ConventionPosterior,
+    KnownConventions,
+    PosteriorPlayer,
+    known_conventions,
+    require_action_probs,
+)
 from rllib_conv.training.ego_setup import EgoSetup, setup_for
 from rllib_conv.training.evaluate import ego_head_partner, load_module, player_return
 from rllib_conv.training.experiment import ExperimentConfig, trial_config
@@ -97,9 +102,7 @@ def adapt_curve(cfg: AdaptConfig, run: str, partner: str) -> Curve:
             f"method {trained.method!r} (one shared head)"
         )
     if cfg.head_init == "posterior":
-        opaque = [e.name for e in partners.get(trained.population).entries("train") if not gives_action_probs(e.kind)]
-        if opaque:
-            raise ValueError(f"head_init 'posterior' models the training partners, but {opaque} do not give their action probabilities")
+        require_action_probs(partners.get(trained.population), "head_init 'posterior'")
     every, _ = protocol(cfg, trained)
     defaults = ADAPT_DEFAULTS.get(game, {})
     ppo = trained.ppo.model_dump()
@@ -162,22 +165,28 @@ class AdaptTrainable(AlgorithmTrainable):
         self.picked: list[str | None] = [None] * k
         self.finished = [False] * k
         self.rows: list[dict[str, Any]] = []
+        self._trained: dict[str, Any] = {}  # run -> its trained ego, loaded once for all its curves
         if self.cfg.head_init == "posterior":
             self._start_posteriors()
 
+    def _trained_ego(self, run: str) -> Any:
+        """The trained ego of `run` (its last checkpoint), loaded once per trial."""
+        if run not in self._trained:
+            self._trained[run] = load_module(last_checkpoint(run))
+        return self._trained[run]
+
     def _start_posteriors(self) -> None:
-        """Per curve: the trained ego's heads and partner models, an empty posterior; the new partner's moves recorded."""
-        self.trained, self.known, self.known_heads, self.posteriors = [], [], [], []
-        self.handed: list[int | None] = [None] * len(self.curves)
-        settings, seed = self.cfg.posterior, self.cfg.seed
+        """Per curve: what its trained ego knows (shared by the curves of one run), an empty posterior; the new partner's moves recorded."""
+        by_run: dict[str, KnownConventions] = {}
         for curve in self.curves:
-            train = partners.get(curve.trained.population).entries("train")
-            self.trained.append(load_module(last_checkpoint(curve.run)))
-            self.known_heads.append([ego_id(e.name) for e in train])
-            self.known.append([ego_head_partner(self.trained[-1], mid, seed) for mid in self.known_heads[-1]])
-            self.posteriors.append(
-                ConventionPosterior([e.build() for e in train], envs.convention_key(curve.setup.population.env), settings.recombined, settings.novel, settings.epsilon)
-            )
+            if curve.run not in by_run:
+                by_run[curve.run] = known_conventions(partners.get(curve.trained.population), self._trained_ego(curve.run), "head_init 'posterior'")
+        self.known = [by_run[c.run] for c in self.curves]
+        self.handed: list[int | None] = [None] * len(self.curves)
+        s = self.cfg.posterior
+        self.posteriors = [
+            ConventionPosterior(known.models, envs.convention_key(c.setup.population.env), s.recombined, s.novel, s.epsilon) for known, c in zip(self.known, self.curves)
+        ]
         self.partner_modules = [replica_id(partner_id(c.setup.train[0].name), r) for r, c in enumerate(self.curves)]
         mids = self.partner_modules
         self.algo.env_runner_group.foreach_env_runner(lambda runner: [runner.module[m].record_moves() for m in mids], local_env_runner=True)
@@ -194,9 +203,10 @@ class AdaptTrainable(AlgorithmTrainable):
             post = posterior.hypotheses()[:-1]
             if self.handed[r] is None and post.max() >= self.cfg.posterior.handover:
                 self.handed[r] = int(post.argmax())
-                self.picked[r] = self.known_heads[r][self.handed[r]]
+                self.picked[r] = self.known[r].head_ids[self.handed[r]]
                 # The trained ego with that head, as it was: the head fits the task module it was trained beside.
-                heads[r], tasks[r] = self.trained[r][self.picked[r]].state_dict(), self.trained[r][TASK_ID].state_dict()
+                trained = self._trained_ego(self.curves[r].run)
+                heads[r], tasks[r] = trained[self.picked[r]].state_dict(), trained[TASK_ID].state_dict()
         self._load_new_heads(heads, tasks)
 
     def _load_new_heads(self, states: dict[int, dict[str, Any]], tasks: dict[int, dict[str, Any]] | None = None) -> None:
@@ -215,10 +225,10 @@ class AdaptTrainable(AlgorithmTrainable):
 
     def _player(self, r: int, plain: Any, head_id: str) -> Any:
         """The ego of curve r as it is evaluated: its new head, or the posterior player around it."""
-        adapting = ego_head_partner(plain, head_id, self.cfg.seed + self.iteration)
+        adapting = ego_head_partner(plain, head_id)  # `player_return` seeds every player it plays
         if self.cfg.head_init != "posterior":
             return adapting
-        return PosteriorPlayer(head_id, self.posteriors[r], self.known[r], adapting, self.handed[r], seed=self.cfg.seed + self.iteration)
+        return PosteriorPlayer(head_id, self.posteriors[r], self.known[r].heads, adapting, self.handed[r])
 
     def _pick_heads(self) -> list[HeadPick]:
         """Per curve: try the fresh head and every trained head on the new partner; copy the winner into the new head."""
@@ -226,7 +236,7 @@ class AdaptTrainable(AlgorithmTrainable):
         for r, (curve, rep) in enumerate(zip(self.curves, self.replicas)):
             plain = copy_replica(module, r, rep, self.plain[r])
             entry, new_head = curve.setup.train[0], curve.setup.head_for(curve.setup.train[0].name)
-            trained = load_module(last_checkpoint(curve.run))
+            trained = self._trained_ego(curve.run)
             seed = self.cfg.seed + PICK_SEED
             players = {FRESH: ego_head_partner(plain, new_head, seed)}
             players |= {mid: ego_head_partner(trained, mid, seed) for mid in trained.head_ids()}

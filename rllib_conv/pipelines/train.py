@@ -34,7 +34,7 @@ from rllib_conv.modules.multi import AGG_HEAD_ID, TASK_ID, partner_id, replica_i
 from rllib_conv.training.algorithm import Replica, build_algorithm
 from rllib_conv.training.callbacks import STEPS_DONE, STEPS_TOTAL, StageProgress
 from rllib_conv.training.ego_setup import EgoSetup, resolve
-from rllib_conv.training.evaluate import ego_return
+from rllib_conv.training.evaluate import ego_head_partner, player_return
 from rllib_conv.training.experiment import ExperimentConfig, validate
 from rllib_conv.training.maml import MetaTrainer
 from rllib_conv.training.marginals import marginal_distances, marginal_states
@@ -69,7 +69,7 @@ def evaluate(module: Any, setup: EgoSetup, episodes: int, seed: int = 0) -> dict
     out: dict[str, Any] = {}
     game = setup.population.env
     for e in setup.train:
-        r = ego_return(module, setup.head_for(e.name), game, setup.env_config, e.build(), setup.ego_agent, setup.partner_agent, episodes, seed)
+        r = player_return(ego_head_partner(module, setup.head_for(e.name)), game, setup.env_config, e.build(), setup.ego_agent, setup.partner_agent, episodes, seed)
         for key, value in r.items():
             out[f"eval/{key}/{e.name}"] = value
     marginals = method(setup.exp.method).marginals

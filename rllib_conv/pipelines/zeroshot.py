@@ -40,7 +40,7 @@ from rllib_conv.training.algorithm import Replica, build_algorithm, packing_key
 from rllib_conv.training.callbacks import STEPS_DONE, STEPS_TOTAL, StageProgress
 from rllib_conv.training.checkpoints import last_checkpoint
 from rllib_conv.training.ego_setup import setup_for
-from rllib_conv.training.evaluate import ego_return
+from rllib_conv.training.evaluate import ego_head_partner, player_return
 from rllib_conv.training.experiment import ExperimentConfig, trial_config
 from rllib_conv.training.packs import cluster_cpus, packs, write_tables
 from rllib_conv.training.replica_export import replica_module
@@ -160,8 +160,8 @@ class ZeroShotTrainable(AlgorithmTrainable):
             composed[TASK_ID].load_state_dict(stack.task_state(r))
             new, trained, setup = plan["new"], plan["trained"], self.task_replicas[r].setup
             for entry in new.entries("test"):
-                score = ego_return(
-                    composed, ego_id(entry.name), new.env, new.env_config, entry.build(), setup.ego_agent, setup.partner_agent, self.cfg.episodes, self.cfg.seed,
+                score = player_return(
+                    ego_head_partner(composed, ego_id(entry.name)), new.env, new.env_config, entry.build(), setup.ego_agent, setup.partner_agent, self.cfg.episodes, self.cfg.seed,
                 )
                 rows.append(
                     {"run": run, "method": trained.method, "lam": trained.lam, "seed": trained.seed, "partner": entry.name,

@@ -11,14 +11,13 @@ import numpy as np
 from rllib_conv import partners
 from rllib_conv.common.methods import method
 from rllib_conv.common.run_folders import CONFIG_FILE, experiment_of, trial_folders, trial_name
-from rllib_conv.modules import ego_id
 from rllib_conv.modules.multi import AGG_HEAD_ID
-from rllib_conv.partners.kinds import gives_action_probs
 from rllib_conv.partners.population import Population
 from rllib_conv.play.agent import Prior, legal_renormalised
 from rllib_conv.play.convention_agent import ConventionSource
 from rllib_conv.training.checkpoints import last_checkpoint
-from rllib_conv.training.evaluate import ego_head_partner, head_probs, load_module, task_probs
+from rllib_conv.training.convention_posterior import known_conventions
+from rllib_conv.training.evaluate import head_probs, load_module, task_probs
 from rllib_conv.training.experiment import ExperimentConfig, trial_config
 
 
@@ -97,12 +96,8 @@ def convention_source(run: EgoRun, what: str) -> ConventionSource:
     """The training partners and the trained ego's head for each, for `--adapter posterior`; ValueError naming `what` if the run has no per-partner heads."""
     if method(run.exp.method).single_head:
         raise ValueError(f"--adapter posterior: {what} {str(run.trial)!r} is a {run.exp.method!r} ego with one shared head; it needs one head per training partner (a modular run)")
-    train = run.population.entries("train")
-    opaque = [e.name for e in train if not gives_action_probs(e.kind)]
-    if opaque:
-        raise ValueError(f"--adapter posterior: {what}'s training partners {opaque} do not give their action probabilities")
-    module = load_module(last_checkpoint(run.trial))
-    return ConventionSource(models=[e.build() for e in train], known=[ego_head_partner(module, ego_id(e.name)) for e in train])
+    known = known_conventions(run.population, load_module(last_checkpoint(run.trial)), f"--adapter posterior: {what}")
+    return ConventionSource(models=known.models, known=known.heads)
 
 
 def require_user_study(run: EgoRun, new_task: bool, what: str) -> None:

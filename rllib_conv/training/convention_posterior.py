@@ -29,11 +29,17 @@ moves, and one who follows none falls to the adapting head, i.e. to the paper's 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from rllib_conv.envs.convention_keys import KeyFn
+from rllib_conv.modules import ego_id
 from rllib_conv.partners.base import Partner
+from rllib_conv.partners.kinds import gives_action_probs
+from rllib_conv.partners.population import Population
+from rllib_conv.training.evaluate import ego_head_partner
 
 MAX_REMEMBERED = 100_000  # model probabilities kept per posterior (and its copies) before starting afresh
 
@@ -42,6 +48,30 @@ def logsumexp(x: np.ndarray, axis: int = -1) -> np.ndarray:
     """log(sum(exp(x))) along `axis`, stably; SciPy's costs 0.2 ms a call, which is most of playing one bandit episode."""
     top = np.max(x, axis=axis, keepdims=True)
     return np.squeeze(top, axis=axis) + np.log(np.sum(np.exp(x - top), axis=axis))
+
+
+@dataclass(frozen=True)
+class KnownConventions:
+    """What a trained modular ego knows of its training partners: the partners (the posterior's models) and its head for each (module IDs, and as players)."""
+
+    models: list[Partner]
+    head_ids: list[str]
+    heads: list[Partner]
+
+
+def require_action_probs(population: Population, what: str) -> None:
+    """ValueError naming `what` unless every training partner of `population` gives its action probabilities (the posterior models them)."""
+    opaque = [e.name for e in population.entries("train") if not gives_action_probs(e.kind)]
+    if opaque:
+        raise ValueError(f"{what} models the training partners, but {opaque} do not give their action probabilities")
+
+
+def known_conventions(population: Population, module: Any, what: str) -> KnownConventions:
+    """The training partners of `population` and the trained ego `module`'s head for each (`require_action_probs` first)."""
+    require_action_probs(population, what)
+    train = population.entries("train")
+    head_ids = [ego_id(e.name) for e in train]
+    return KnownConventions([e.build() for e in train], head_ids, [ego_head_partner(module, mid) for mid in head_ids])
 
 
 class ConventionPosterior:

@@ -38,7 +38,7 @@ def task_probs(module: ConventionMultiRLModule, obs: np.ndarray, mask: np.ndarra
 
 
 def ego_head_partner(module: ConventionMultiRLModule, head_id: str, seed: int = 0) -> PolicyPartner:
-    """The ego with head `head_id` as a sampling `Partner`, for `play_episodes` (its weights fixed while it plays)."""
+    """The ego with head `head_id` as a sampling `Partner`, for `play_episodes` and `player_return` (its weights fixed while it plays)."""
 
     def logits(obs: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
         z, task_logits = module.task.policy(obs, mask)
@@ -77,21 +77,6 @@ def player_return(
     if isinstance(env, CollaborativeBanditEnv):
         out["exact"] = bandit_exact_return(ego, env, partner)
     return out
-
-
-def ego_return(
-    module: ConventionMultiRLModule,
-    head_id: str,
-    env_name: str,
-    env_config: dict[str, Any],
-    partner: Partner,
-    ego_agent: str,
-    partner_agent: str,
-    episodes: int = 200,
-    seed: int = 0,
-) -> dict[str, float]:
-    """Return the ego head's mean return with `partner` and its standard error (`player_return` of `ego_head_partner`)."""
-    return player_return(ego_head_partner(module, head_id, seed), env_name, env_config, partner, ego_agent, partner_agent, episodes, seed)
 
 
 def load_module(checkpoint: str | Path) -> ConventionMultiRLModule:
