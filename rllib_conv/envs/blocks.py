@@ -72,6 +72,21 @@ def block_cell(grid: np.ndarray, colour: int) -> int | None:
     return int(cells[0]) if len(cells) else None
 
 
+def apply_move(grid: np.ndarray, colour: int, action: int) -> np.ndarray:
+    """Return the working grid after the owner of `colour` plays `action` (a new array).
+
+    Placing moves the block (evicting whatever was on the new cell), REMOVE takes it off
+    the grid, PASS changes nothing.
+    """
+    grid = np.array(grid, dtype=np.int64)
+    if action < NUM_CELLS:
+        grid[grid == colour] = EMPTY
+        grid[action] = colour
+    elif action == REMOVE:
+        grid[grid == colour] = EMPTY
+    return grid
+
+
 def final_reward(goal: tuple[int, int], grid: np.ndarray, new_task: bool = False) -> float:
     """Return the shared end-of-game reward for a working `grid` and goal `(red, blue)`."""
     red_goal, blue_goal = goal
@@ -145,12 +160,7 @@ class BlockPlacingEnv(AECEnv):
             self._was_dead_step(action)
             return
         action = validate_action(action, self._mask, env="blocks", agent=agent)
-        colour = self._colour[agent]
-        if action < NUM_CELLS:
-            self.grid[self.grid == colour] = EMPTY
-            self.grid[action] = colour
-        elif action == REMOVE:
-            self.grid[self.grid == colour] = EMPTY
+        self.grid = apply_move(self.grid, self._colour[agent], action)
         self.history.append((agent, action))
         self.move += 1
         self._cumulative_rewards[agent] = 0.0

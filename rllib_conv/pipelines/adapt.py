@@ -9,9 +9,10 @@ env steps try the fresh head and each training partner's head on the new partner
 of training, and the best one's weights start the new head (`head_pick`). With
 `head_init: posterior` the fresh head adapts as the paper's does, while the new partner's
 moves in those env steps feed a posterior over which training partner's convention it
-follows; the ego is evaluated playing by it (`convention_posterior.PosteriorPlayer`), and
-once one known convention is near certain the ego starts again from the trained ego with
-that partner's head, which PPO fine-tunes from there.
+follows; the ego is evaluated playing by it (`convention_posterior.PosteriorPlayer`: on
+blocks, the best response to its prediction of the partner), and once one known
+convention is near certain the ego starts again from the trained ego with that partner's
+head, which PPO fine-tunes from there.
 
 Curves train in packs: one Tune trial (`AdaptTrainable`) holds up to `max_pack` curves of
 egos that differ only in seed and partner, as replicas of one algorithm (each with its own
@@ -187,6 +188,7 @@ class AdaptTrainable(AlgorithmTrainable):
         self.posteriors = [
             ConventionPosterior(known.models, envs.convention_key(c.setup.population.env), s.recombined, s.novel, s.epsilon) for known, c in zip(self.known, self.curves)
         ]
+        self.planners = [envs.best_response(c.setup.population.env, c.setup.env_config, c.setup.ego_agent) for c in self.curves]
         self.partner_modules = [replica_id(partner_id(c.setup.train[0].name), r) for r, c in enumerate(self.curves)]
         mids = self.partner_modules
         self.algo.env_runner_group.foreach_env_runner(lambda runner: [runner.module[m].record_moves() for m in mids], local_env_runner=True)
@@ -228,7 +230,7 @@ class AdaptTrainable(AlgorithmTrainable):
         adapting = ego_head_partner(plain, head_id)  # `player_return` seeds every player it plays
         if self.cfg.head_init != "posterior":
             return adapting
-        return PosteriorPlayer(head_id, self.posteriors[r], self.known[r].heads, adapting, self.handed[r])
+        return PosteriorPlayer(head_id, self.posteriors[r], self.known[r].heads, adapting, self.handed[r], planner=self.planners[r])
 
     def _pick_heads(self) -> list[HeadPick]:
         """Per curve: try the fresh head and every trained head on the new partner; copy the winner into the new head."""

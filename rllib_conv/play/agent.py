@@ -53,11 +53,10 @@ import numpy as np
 from rllib_conv.envs.bandit import oracle_marginals
 from rllib_conv.envs.blocks import (
     BLUE,
-    EMPTY,
     NUM_CELLS,
     PASS,
     RED,
-    REMOVE,
+    apply_move,
     block_cell,
     decode_observation,
     encode_observation,
@@ -206,12 +205,7 @@ def replay_grids(history: list[tuple[int, int]]) -> list[np.ndarray]:
     grids = []
     for player, action in history:
         grids.append(grid.copy())
-        colour = RED if player == 1 else BLUE
-        if action < NUM_CELLS:
-            grid[grid == colour] = EMPTY
-            grid[action] = colour
-        elif action == REMOVE:
-            grid[grid == colour] = EMPTY
+        grid = apply_move(grid, RED if player == 1 else BLUE, action)
     return grids
 
 

@@ -135,7 +135,8 @@ class StageProgress(_ThrottledPrint):
     `log` prints the line (default `print`). Steps come from each trial's latest result
     (`STEPS_DONE`, `STEPS_TOTAL`; a resumed run knows its trials' last results); a trial
     not yet started counts as the mean known total. The ETA extrapolates this run's step
-    rate: steps played before a resume do not count towards it.
+    rate: steps played before a resume do not count towards it, and a resumed trial that
+    starts again from zero (an adaptation pack) counts from zero.
     """
 
     def __init__(self, label: str, every: float = 30.0, log: Any = print) -> None:
@@ -143,7 +144,7 @@ class StageProgress(_ThrottledPrint):
         self._start = time.monotonic()
         self._last_print = self._start
         self._latest: dict[str, dict[str, Any]] = {}
-        self._before: float | None = None
+        self._played = 0.0  # env steps played in this run
 
     def _steps(self, trials: list) -> tuple[float, float]:
         """Env steps played and to play over `trials` (unstarted trials at the mean known total)."""
@@ -161,7 +162,7 @@ class StageProgress(_ThrottledPrint):
         finished = sum(t.status == "TERMINATED" for t in trials)
         done, total = self._steps(trials)
         elapsed = time.monotonic() - self._start
-        rate = (done - (self._before or 0.0)) / elapsed if elapsed > 0 else 0.0
+        rate = self._played / elapsed if elapsed > 0 else 0.0
         if finished == len(trials):
             eta = "0m00s"
         else:
@@ -171,8 +172,10 @@ class StageProgress(_ThrottledPrint):
     text = line
 
     def on_trial_result(self, iteration: int, trials: list, trial: Any, result: dict[str, Any], **info: Any) -> None:
-        if self._before is None:  # what earlier runs played (restored trials' last results)
-            self._before = self._steps(trials)[0]
+        # Before: the trial's previous result in this run, or what an earlier run left (a restored trial's last result).
+        before = self._latest.get(trial.trial_id) or getattr(trial, "last_result", None) or {}
+        now, then = float(result.get(STEPS_DONE, 0.0)), float(before.get(STEPS_DONE, 0.0))
+        self._played += now - then if now >= then else now  # fewer steps than before: it started again
         self._latest[trial.trial_id] = result
         super().on_trial_result(iteration, trials, trial, result, **info)
 

@@ -21,9 +21,14 @@ certain); a novel convention is uniform. Priors: `recombined` on recombination, 
 split evenly over the whole conventions; within a situation `novel` on a novel convention.
 
 On the bandit a recombination-posterior of known conventions is what the Bayes-optimal
-adapter does (a seen context's arm is known, an unseen one is the marginal); on blocks and
-Hanabi a partner who follows a training partner's convention is identified within a few
-moves, and one who follows none falls to the adapting head, i.e. to the paper's method.
+adapter does (a seen context's arm is known, an unseen one is the marginal). Where a game
+can plan against a partner model (`envs.best_response`; blocks, with the ego as P1), the
+ego plays the best response to the posterior's prediction of the partner's moves
+(`ConventionPosterior.predictive`) instead of choosing among heads: a partner that mixes
+known conventions observation by observation, or follows a new one, is answered as well
+as the evidence allows. On Hanabi (no key, no planner) a partner who follows a training
+partner's convention is identified within a few moves, and one who follows none falls to
+the adapting head, i.e. to the paper's method.
 """
 
 from __future__ import annotations
@@ -34,6 +39,7 @@ from typing import Any
 
 import numpy as np
 
+from rllib_conv.envs.best_response import BestResponse
 from rllib_conv.envs.convention_keys import KeyFn
 from rllib_conv.modules import ego_id
 from rllib_conv.partners.base import Partner
@@ -94,6 +100,7 @@ class ConventionPosterior:
         self._whole = np.zeros(k)  # log-likelihood of every move under whole convention k
         self._unkeyed = 0.0  # log-likelihood under recombination of the moves without a situation key
         self._parts: dict[int, np.ndarray] = {}  # situation key -> log-likelihood of its moves per (known k..., novel)
+        self._counts: dict[int, np.ndarray] = {}  # situation key -> how often the partner played each action there
         self._hypotheses: np.ndarray | None = None  # `hypotheses()` until the next `observe`
         # (observation, mask) bytes -> the models' action probabilities [K, A]; the models never change, so copies share it.
         self._model_probs: dict[tuple[bytes, bytes], np.ndarray] = {}
@@ -133,9 +140,11 @@ class ConventionPosterior:
         if self.key is None:
             self._unkeyed += float(logsumexp(self._log_part_prior + log_lik, axis=1).sum())
             return
-        for obs, row in zip(observations, log_lik):
+        played = np.eye(np.shape(masks)[1])[np.asarray(actions, dtype=np.int64)]
+        for obs, row, one_hot in zip(observations, log_lik, played):
             key = self.key(obs)
-            self._parts[key] = self._parts.get(key, 0.0) + row  # a new array: copies keep theirs
+            self._parts[key] = self._parts.get(key, 0.0) + row  # new arrays: copies keep theirs
+            self._counts[key] = self._counts.get(key, 0.0) + one_hot
 
     def hypotheses(self) -> np.ndarray:
         """[K + 1]: the posterior of whole convention k, and last of recombination."""
@@ -156,11 +165,33 @@ class ConventionPosterior:
         log_post = self._log_part_prior + part
         return np.exp(log_post - logsumexp(log_post))
 
+    def predictive(self, observations: np.ndarray, masks: np.ndarray) -> np.ndarray:
+        """[N, A]: the probability of each partner move in each observation, given the evidence.
+
+        Whole convention k by its posterior predicts its (smoothed) model; recombination
+        predicts by the situation's posterior (its prior where unseen), a novel convention
+        there by the moves seen in it (counts plus one half; uniform where unseen).
+        """
+        legal = np.asarray(masks, dtype=np.float64)
+        uniform = legal / legal.sum(axis=1, keepdims=True)
+        known = (1.0 - self.epsilon) * self.model_probs(observations, masks) + self.epsilon * uniform[:, None, :]  # [N, K, A]
+        post = self.hypotheses()
+        out = np.einsum("k,nka->na", post[:-1], known)
+        part_prior = np.exp(self._log_part_prior)
+        for n, obs in enumerate(np.asarray(observations)):
+            key = self.key(obs) if self.key else None
+            part, counts = self.situation(key), self._counts.get(key)
+            part = part_prior if part is None else part
+            novel = uniform[n] if counts is None else (counts + 0.5) * legal[n] / ((counts + 0.5) * legal[n]).sum()
+            out[n] += post[-1] * (part[:-1] @ known[n] + part[-1] * novel)
+        return out
+
     def copy(self) -> "ConventionPosterior":
         """An independent copy of the evidence (the models are shared)."""
         other = object.__new__(ConventionPosterior)
         other.__dict__.update(self.__dict__)
-        other._whole, other._parts = self._whole.copy(), dict(self._parts)  # `observe` replaces a part, never changes it
+        # `observe` replaces a situation's arrays, never changes them.
+        other._whole, other._parts, other._counts = self._whole.copy(), dict(self._parts), dict(self._counts)
         return other
 
 
@@ -174,8 +205,12 @@ class PosteriorPlayer(Partner):
     copy with the partner's moves in the episode. The player samples a hypothesis per
     episode and keeps it while its posterior stays above `switch` times the best one's;
     under recombination it samples, at each move, a convention from that situation's
-    posterior. `action_probs` is the
-    mixture this draws from before any move of the episode (exact on one-step games).
+    posterior. `action_probs` is the mixture this draws from before any move of the
+    episode (exact on one-step games).
+
+    With a `planner` (a game's `envs.best_response`), the player instead plays the best
+    response to `posterior`'s prediction of the partner's moves wherever the plan has a
+    move (planned once, from the evidence before the episode).
     """
 
     kind = "convention_posterior"
@@ -189,11 +224,13 @@ class PosteriorPlayer(Partner):
         handed: int | None = None,
         seed: int = 0,
         switch: float = 0.5,
+        planner: BestResponse | None = None,
     ) -> None:
         super().__init__(name)
         if len(known) != posterior.num_known:
             raise ValueError(f"{len(known)} known heads for a posterior over {posterior.num_known} conventions")
         self.posterior, self.adapting, self.handed, self.switch = posterior, adapting, handed, switch
+        self.plan = planner.plan(posterior.predictive(*planner.situations())) if planner else None
         self.known = [adapting if k == handed else head for k, head in enumerate(known)]
         self._seed = seed
         self._rng = np.random.default_rng(seed)
@@ -220,7 +257,14 @@ class PosteriorPlayer(Partner):
     def _draw(self, p: np.ndarray) -> int:
         return int(min(np.searchsorted(np.cumsum(p), self._rng.random() * p.sum(), side="right"), len(p) - 1))
 
+    def _planned(self, observation: np.ndarray, action_mask: np.ndarray) -> int | None:
+        action = self.plan.act(observation) if self.plan else None
+        return action if action is not None and action_mask[action] else None
+
     def act(self, observation: np.ndarray, action_mask: np.ndarray) -> int:
+        planned = self._planned(observation, action_mask)
+        if planned is not None:
+            return planned
         if self._hypothesis < len(self.known):
             return self.known[self._hypothesis].act(observation, action_mask)
         key = self._live.key(np.asarray(observation)) if self._live.key else None
@@ -239,4 +283,7 @@ class PosteriorPlayer(Partner):
         for b, obs in enumerate(observations):
             part = self.posterior.situation(key(obs) if key else None)
             out[b] += post[-1] * (answers[-1, b] if part is None else np.tensordot(part, answers[:, b], axes=1))
+            planned = self._planned(obs, action_masks[b])
+            if planned is not None:
+                out[b] = np.eye(out.shape[1])[planned]
         return out

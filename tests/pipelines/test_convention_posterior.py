@@ -11,9 +11,10 @@ import pytest
 
 from rllib_conv import envs
 from rllib_conv.common.run_folders import trial_folders
-from rllib_conv.envs.convention_keys import bandit_context
+from rllib_conv.envs.blocks import BLUE, HIDDEN, RED, encode_observation
+from rllib_conv.envs.convention_keys import bandit_context, blocks_observation
 from rllib_conv.partners.bandit import BanditConventionPartner
-from rllib_conv.partners.blocks import BlocksLeader, PermutationPartner, derangements
+from rllib_conv.partners.blocks import TEST_PERMUTATIONS, TRAIN_PERMUTATIONS, BlocksLeader, PermutationPartner, derangements
 from rllib_conv.partners.hanabi import RandomLegalPartner
 from rllib_conv.partners.play import episode_stream
 from rllib_conv.partners.population import from_partners
@@ -46,6 +47,44 @@ def test_one_move_by_hand() -> None:
     assert post.situation(1) is None  # context 1 unseen
     # Without evidence: the priors.
     assert ConventionPosterior([LOW, HIGH], bandit_context).hypotheses() == pytest.approx([0.25, 0.25, 0.5])
+
+
+def test_the_prediction_of_the_next_move_by_hand() -> None:
+    post = ConventionPosterior([LOW, HIGH], bandit_context, recombined=0.5, novel=0.1, epsilon=0.05)
+    post.observe(*moves(LOW, [0]))
+    h, part = post.hypotheses(), post.situation(0)
+    low, high = 0.95 * np.eye(8)[[0, 1]] + 0.05 / 8, 0.95 * np.eye(8)[[4, 5]] + 0.05 / 8  # contexts 0 and 1
+    novel_seen = (np.eye(8)[0] + 0.5) / 5  # one pull of arm 0, plus a half per arm
+    seen = h[0] * low[0] + h[1] * high[0] + h[2] * (part[0] * low[0] + part[1] * high[0] + part[2] * novel_seen)
+    unseen = h[0] * low[1] + h[1] * high[1] + h[2] * (0.45 * low[1] + 0.45 * high[1] + 0.1 / 8)
+    assert post.predictive(ONE_HOT[:2], ALL_ARMS[:2]) == pytest.approx(np.stack([seen, unseen]), abs=1e-12)
+    assert post.predictive(ONE_HOT, ALL_ARMS).sum(axis=1) == pytest.approx(np.ones(4))
+
+
+def test_the_blocks_player_plans_against_the_prediction() -> None:
+    # A test permutation recombines the training ones cell by cell: once the partner has answered red on
+    # every cell, the ego's plan scores 20 on every goal; before any evidence, its plan is the best
+    # response to the training partners' mixture, which no head is.
+    models = [PermutationPartner(f"t{i}", list(p)) for i, p in enumerate(TRAIN_PERMUTATIONS)]
+    leaders = [BlocksLeader(f"l{i}", list(p)) for i, p in enumerate(TRAIN_PERMUTATIONS)]
+    planner, new = envs.best_response("blocks", {}, "player_0"), PermutationPartner("new", list(TEST_PERMUTATIONS[0]))
+    post = ConventionPosterior(models, blocks_observation)
+    prior = PosteriorPlayer("ego", post, leaders, RandomLegalPartner(seed=0), planner=planner)
+    assert prior.plan.value.min() > 12.5  # the exact 13.33 of the mixture, less the smoothing's stray moves
+    empty, move1 = np.zeros(4, dtype=np.int64), []
+    for cell in range(4):
+        grid = empty.copy()
+        grid[cell] = RED
+        move1.append(encode_observation(np.full(4, HIDDEN), grid, 1, sees_goal=False))
+    obs, masks = np.stack(move1), np.ones((4, 6), dtype=np.int8)
+    post.observe(obs, masks, new.act_batch(obs, masks))
+    assert post.hypotheses()[-1] > 0.99  # no training permutation is the new one
+    player = PosteriorPlayer("ego", post, leaders, RandomLegalPartner(seed=0), planner=planner)
+    seats = {"player_0": player, "player_1": new}
+    assert [score for score, _ in itertools.islice(episode_stream(envs.make("blocks"), seats, seed=0), 30)] == [20.0] * 30
+    # Goal red on cell 0, blue on cell 1: signal blue's cell through the new permutation, for certain.
+    start = encode_observation(np.array([RED, BLUE, 0, 0]), empty, 0, sees_goal=True)[None]
+    assert player.action_probs(start, masks[:1]).tolist() == [np.eye(6)[new.perm.index(1)].tolist()]
 
 
 def test_rule_moves_tell_conventions_apart_from_nothing() -> None:
@@ -105,7 +144,7 @@ def test_sampled_play_draws_from_the_mixture() -> None:
 
 
 def test_blocks_partners_are_identified_from_their_moves_within_an_episode() -> None:
-    # Whole conventions only (blocks has no situation key). The ego heads are the leaders of each permutation.
+    # Whole conventions only (no situation key, no planner). The ego heads are the leaders of each permutation.
     perms = [list(p) for p in derangements()[:4]]
     models = [PermutationPartner(f"p{i}", p) for i, p in enumerate(perms)]
     leaders = [BlocksLeader(f"l{i}", p) for i, p in enumerate(perms)]
@@ -174,3 +213,25 @@ def test_a_partner_following_no_known_convention_falls_back_to_fine_tuning(narro
     # (same seeds); context 1 follows training partner "a", whose head the posterior plays from the first update.
     assert post["exact_return"].iloc[-1] >= plain["exact_return"].iloc[-1] - 0.02
     assert plain["exact_return"].iloc[-1] > plain["exact_return"].iloc[0] + 0.1  # the plain method did learn
+
+
+@pytest.fixture(scope="module")
+def blocks_ego(ray_session, tmp_path_factory) -> str:
+    """A modular blocks ego (P1) trained briefly with the 3 training permutations: it knows the rules a little, the conventions hardly."""
+    folder = tmp_path_factory.mktemp("blocks")
+    overrides = ["name=blocks", "population=blocks-perm", "run.timesteps=4000", "ppo.rollout_per_partner=400", "ppo.minibatch_size=100"]
+    results = run(experiment.load("tune_configs/bandit_modular.yaml", overrides), storage=folder / "runs")
+    assert not results.errors
+    return str(trial_folders(results[0].path)[0])
+
+
+def test_blocks_adaptation_plays_the_best_response_to_a_recombined_convention_after_one_update(blocks_ego, tmp_path) -> None:
+    # A test permutation reads each cell as one of the training permutations does. In the first update's ~640
+    # steps the adapting ego puts red on every cell at move 1, the partner answers, and the plan against the
+    # prediction scores 20 on every goal; the plain method, from the same ego, is far from it.
+    common = {"runs": [blocks_ego], "split": "test", "partners": ["perm-1032"], "steps": 1280, "episodes": 40}
+    post = run_adaptation({"name": "posterior", "head_init": "posterior", **common}, out=tmp_path, storage=tmp_path / "runs")
+    plain = run_adaptation({"name": "fresh", **common}, out=tmp_path, storage=tmp_path / "runs")
+    assert post["steps"].tolist() == plain["steps"].tolist() and len(post) == 3  # before, after one and two updates
+    assert (post["mean_return"].iloc[1:] == 20.0).all()
+    assert plain["mean_return"].max() < 17.0

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from types import SimpleNamespace
 
-from rllib_conv.training.callbacks import ProgressTable
+from rllib_conv.training import callbacks
+from rllib_conv.training.callbacks import STEPS_DONE, STEPS_TOTAL, ProgressTable
 
 
 def _trial(trial_id, status, params, result):
@@ -24,3 +25,20 @@ def test_table_rows_hold_swept_values_and_latest_metrics() -> None:
     assert lines[3].split() == ["x_1", "TERMINATED", "0.0", "30", "40", "10240", "1.000"]
     assert lines[4].split() == ["x_2", "PENDING", "0.3", "30", "0"]
     assert len({len(line) for line in lines[1:]}) == 1  # columns aligned
+
+
+def test_stage_line_counts_this_runs_steps_for_its_eta(monkeypatch) -> None:
+    # A resumed stage: pack "a" had played 500 of its 1000 steps before the kill and starts again from
+    # zero; "b" is new. In this run's first 10 s they play 100 + 200 steps: 30 steps/s, 1700 left, 57 s.
+    now = [0.0]
+    monkeypatch.setattr(callbacks.time, "monotonic", lambda: now[0])
+    progress = callbacks.StageProgress("[bandit] adapt", every=1e9, log=lambda line: None)
+    trials = [_trial("a", "RUNNING", {}, {STEPS_DONE: 500, STEPS_TOTAL: 1000}), _trial("b", "RUNNING", {}, {})]
+    now[0] = 10.0
+    progress.on_trial_result(1, trials, trials[0], {STEPS_DONE: 100, STEPS_TOTAL: 1000})
+    progress.on_trial_result(1, trials, trials[1], {STEPS_DONE: 200, STEPS_TOTAL: 1000})
+    assert progress.line(trials) == "[bandit] adapt: 0/2 trials done, 0.3k/2.0k env steps, 0m10s elapsed, ETA 0m57s"
+    # Later results add what was played since the trial's previous one: 600 steps in 20 s, 1400 left.
+    now[0] = 20.0
+    progress.on_trial_result(2, trials, trials[0], {STEPS_DONE: 400, STEPS_TOTAL: 1000})
+    assert progress.line(trials) == "[bandit] adapt: 0/2 trials done, 0.6k/2.0k env steps, 0m20s elapsed, ETA 0m47s"
