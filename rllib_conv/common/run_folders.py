@@ -104,16 +104,17 @@ def trial_name(trial: str | Path) -> str:
     return f"{trial.parent.name}/{trial.name}" if trial.name.startswith(REPLICA_PREFIX) else trial.name
 
 
-def trial_folders(path: str | Path) -> list[Path]:
+def trial_folders(path: str | Path, missing_ok: bool = False) -> list[Path]:
     """The trained-ego folders under `path` (itself, or every one of an experiment folder, replicas included).
 
-    ValueError when `path` holds neither.
+    ValueError when `path` holds neither, unless `missing_ok` (then an empty list: an
+    experiment whose training has not begun, e.g. one a killed run set up).
     """
     path = Path(path)
     if (path / CONFIG_FILE).is_file():
         return [path]
     trials = sorted(p.parent for pattern in (f"*/{CONFIG_FILE}", f"*/{REPLICA_PREFIX}*/{CONFIG_FILE}") for p in path.glob(pattern))
-    if not trials:
+    if not trials and not missing_ok:
         raise ValueError(f"{str(path)!r} is neither a trained-ego trial folder nor an experiment folder holding some ({CONFIG_FILE} missing)")
     return trials
 

@@ -192,8 +192,9 @@ class Reproduction:
     def stage_marginals(self) -> None:
         experiments = [e for e in sorted(self.runs.glob("*__*")) if self.has_marginals(e.name)]
         # Finished egos only (their eval.json is written when training ends): another
-        # process may be training an experiment in the same folder.
-        trials = [t for exp in experiments for t in trial_folders(exp) if (t / EVAL_FILE).is_file()]
+        # process may be training an experiment in the same folder, or a killed wider
+        # run may have left one whose training never began.
+        trials = [t for exp in experiments for t in trial_folders(exp, missing_ok=True) if (t / EVAL_FILE).is_file()]
         table = marginal_report(trials)
         table["experiment"] = [experiment_of(r).name for r in table["run"]]
         table.to_csv(self.root / MARGINALS_FILE, index=False)

@@ -145,7 +145,7 @@ def test_a_marker_without_items_covers_nothing(tmp_path, monkeypatch) -> None:
     assert calls == ["bandit"] and seconds >= 12.5 and len(covered) == 3
 
 
-def test_marginals_leave_out_unfinished_trials_and_populations_whose_conventions_are_not_uniform(tmp_path, monkeypatch) -> None:
+def test_marginals_leave_out_unfinished_or_unbegun_trials_and_populations_whose_conventions_are_not_uniform(tmp_path, monkeypatch) -> None:
     plan = narrow(plan_for("bandit"), ["bandit-s2-hand", "bandit-user-study"], ["agg"])
     repro = Reproduction(plan, tmp_path, log=lambda _: None)
     assert repro.stage_items("marginals") == [f"bandit-s2-hand__{m} seeds=0,1,2" for m in ("agg", "modular-lam0.5", "no_task_logits")]
@@ -155,6 +155,9 @@ def test_marginals_leave_out_unfinished_trials_and_populations_whose_conventions
         (tmp_path / "runs" / name / "point_0" / "seed=0" / CONFIG_FILE).write_text("{}")
     for name in ("bandit-s2-hand__agg", "bandit-user-study__agg"):  # maml is still training: no eval.json yet
         (tmp_path / "runs" / name / "point_0" / "seed=0" / EVAL_FILE).write_text("{}")
+    # An experiment a killed wider run set up but never trained: no trial folder at all.
+    (tmp_path / "runs" / "bandit-s2-hand__oracle").mkdir()
+    (tmp_path / "runs" / "bandit-s2-hand__oracle" / "experiment.yaml").write_text("{}")
     seen: list[str] = []
     monkeypatch.setattr("rllib_conv.pipelines.reproduce.marginal_report", lambda trials: seen.extend(t.parent.parent.name for t in trials) or pd.DataFrame({"run": [str(t) for t in trials]}))
     repro.stage_marginals()

@@ -74,7 +74,8 @@ def beyond_section(ctx: Context) -> str:
         "",
         f"`{POSTERIOR}` is not the paper's method: it adapts the ego trained as ours λ=0.5, but plays by a posterior over which "
         "training partner's convention the new partner follows, whole or situation by situation, from the partner's moves "
-        "(`rllib_conv/training/convention_posterior.py`; docs/adapting.md). Its targets are this project's, judged by "
+        "(`rllib_conv/training/convention_posterior.py`; docs/adapting.md); on blocks it plays the exact best response to the "
+        "posterior's prediction of the partner's moves. Its targets are this project's, judged by "
         "paired seed-level intervals; they never change a verdict on the paper.",
     ]
     data = ctx.adaptation[ctx.adaptation["population"].isin(ctx.adaptation.loc[ctx.adaptation["label"] == POSTERIOR, "population"].unique())]
