@@ -28,7 +28,7 @@ from rllib_conv.envs.blocks import (
     final_reward,
 )
 
-P1_MOVES, P2_MOVES = range(0, NUM_MOVES, 2), range(1, NUM_MOVES, 2)
+P2_MOVES = range(1, NUM_MOVES, 2)  # P1 moves at the even ones
 
 
 def all_grids() -> list[np.ndarray]:

@@ -122,13 +122,17 @@ class ConventionPosterior:
             self._model_probs.update(zip((keys[i] for i in todo), probs))
         return np.stack([self._model_probs[key] for key in keys])
 
+    def smoothed_probs(self, observations: np.ndarray, masks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """([N, K, A], [N, A]): every known convention's move probabilities with `epsilon` of uniform legal play mixed in, and that uniform play."""
+        legal = np.asarray(masks, dtype=np.float64)
+        uniform = legal / legal.sum(axis=1, keepdims=True)
+        return (1.0 - self.epsilon) * self.model_probs(observations, masks) + self.epsilon * uniform[:, None, :], uniform
+
     def move_likelihoods(self, observations: np.ndarray, masks: np.ndarray, actions: np.ndarray) -> np.ndarray:
         """[N, K + 1]: each move's probability under known convention k (smoothed) and under a novel one (uniform)."""
-        legal = np.asarray(masks, dtype=np.float64)
-        rows, actions = np.arange(len(legal)), np.asarray(actions, dtype=np.int64)
-        uniform = legal[rows, actions] / legal.sum(axis=1)
-        known = self.model_probs(observations, masks)[rows, :, actions]
-        return np.concatenate([(1.0 - self.epsilon) * known + self.epsilon * uniform[:, None], uniform[:, None]], axis=1)
+        known, uniform = self.smoothed_probs(observations, masks)
+        rows, actions = np.arange(len(uniform)), np.asarray(actions, dtype=np.int64)
+        return np.concatenate([known[rows, :, actions], uniform[rows, actions][:, None]], axis=1)
 
     def observe(self, observations: np.ndarray, masks: np.ndarray, actions: np.ndarray) -> None:
         """Add the partner's moves (observations [N, d], masks [N, A], actions [N]) to the evidence."""
@@ -172,9 +176,8 @@ class ConventionPosterior:
         predicts by the situation's posterior (its prior where unseen), a novel convention
         there by the moves seen in it (counts plus one half; uniform where unseen).
         """
+        known, uniform = self.smoothed_probs(observations, masks)
         legal = np.asarray(masks, dtype=np.float64)
-        uniform = legal / legal.sum(axis=1, keepdims=True)
-        known = (1.0 - self.epsilon) * self.model_probs(observations, masks) + self.epsilon * uniform[:, None, :]  # [N, K, A]
         post = self.hypotheses()
         out = np.einsum("k,nka->na", post[:-1], known)
         part_prior = np.exp(self._log_part_prior)
