@@ -183,6 +183,9 @@ class AdaptiveAgent:
                 raise ValueError(f"hindsight target {target!r} is not a legal action (mask {np.asarray(mask).tolist()})")
             self.partner.update(obs, self.policy(obs, mask), int(target))
 
+    def watch(self, moves: list[Target]) -> None:
+        """The person's own moves (their observation, mask, action): the paper's agent learns from hindsight targets alone, so nothing here."""
+
 
 # --- hindsight targets -----------------------------------------------------------------
 
@@ -233,6 +236,17 @@ def blocks_p1_targets(history: list[tuple[int, int]]) -> list[Target]:
                 if r != blue
             ]
     return []
+
+
+def blocks_p2_moves(history: list[tuple[int, int]]) -> list[Target]:
+    """Blocks: P2's moves of `history` as P2 saw them (goal hidden, the grid, the move number), with its mask (every action)."""
+    hidden = np.zeros(NUM_CELLS, dtype=np.int64)  # not shown: P2 does not see the goal
+    mask = np.ones(BLOCKS_ACTIONS, dtype=np.int8)
+    return [
+        (encode_observation(hidden, grid, move, sees_goal=False), mask, int(action))
+        for move, (grid, (player, action)) in enumerate(zip(replay_grids(history), history))
+        if player == 2
+    ]
 
 
 def blocks_p2_targets(history: list[tuple[int, int]], goal: tuple[int, int]) -> list[Target]:

@@ -125,7 +125,9 @@ class BanditRoom(Room):
         if self.agent is not None:
             self.agent.prior = self.priors[task]
             person = 3 - self.agent_seat
-            self.agent.learn(bandit_targets(context, len(CONTEXT_NAMES), USER_STUDY_ARMS, self.picks[person]))
+            picked = bandit_targets(context, len(CONTEXT_NAMES), USER_STUDY_ARMS, self.picks[person])
+            self.agent.learn(picked)
+            self.agent.watch(picked)  # on the bandit the hindsight target is the person's own move
         self.step += 1
         self.picks = {1: None, 2: None}
         if next_pick and self.agent is not None and not self.finished:

@@ -22,6 +22,7 @@ from rllib_conv.envs.spaces import MASK_KEY, OBS_KEY
 from rllib_conv.play.agent import (
     AdaptiveAgent,
     blocks_p1_targets,
+    blocks_p2_moves,
     blocks_p2_targets,
 )
 from rllib_conv.play.room import (
@@ -147,6 +148,8 @@ class BlocksRoom(Room):
         if self.agent is not None:
             targets = blocks_p1_targets(self.moves) if self.agent_seat == 1 else blocks_p2_targets(self.moves, tuple(self.env.goal))
             self.agent.learn(targets)
+            if self.agent_seat == 1:
+                self.agent.watch(blocks_p2_moves(self.moves))
         self._new_game()
 
     def restore(self) -> None:

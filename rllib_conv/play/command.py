@@ -58,7 +58,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--adapter", choices=["table", "posterior"], default="table",
         help="how agents adapt between tries: table (the paper's partner module, default) or posterior: also by a posterior over "
-        "which training partner's convention the person follows, playing that partner's head (bandit; not in the paper)",
+        "which training partner's convention the person follows: that partner's head (bandit) or the best response to it (blocks, agent as P1); not in the paper",
     )
     p.add_argument("--games", type=int, default=5, help="blocks: games per session (default 5)")
     p.add_argument("--seed", type=int, default=0, help="seed of the assignment's tie-breaks, the agent's choices and the blocks goals")

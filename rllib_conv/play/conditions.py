@@ -166,8 +166,6 @@ def build_agent(
     if game not in GAMES:
         raise ValueError(f"{what} {str(ego.trial)!r} was trained on {game!r}; play supports {list(GAMES)}")
     new_task = False
-    if adapter == "posterior" and game != "bandit":
-        raise ValueError(f"--adapter posterior: the bandit only (a blocks hindsight target is not the person's move); {what} plays {game!r}")
     conventions = convention_source(ego, what) if adapter == "posterior" else None
     if game == "bandit":
         require_user_study(ego, new_task=False, what=what)

@@ -8,9 +8,10 @@ from typing import Any
 
 import numpy as np
 
-from rllib_conv import partners
+from rllib_conv import envs, partners
 from rllib_conv.common.methods import method
 from rllib_conv.common.run_folders import CONFIG_FILE, experiment_of, trial_folders, trial_name
+from rllib_conv.envs.convention_keys import convention_key
 from rllib_conv.modules.multi import AGG_HEAD_ID
 from rllib_conv.partners.population import Population
 from rllib_conv.play.agent import Prior, legal_renormalised
@@ -93,11 +94,13 @@ def load_run(path: str | Path, what: str = "RUN") -> EgoRun:
 
 
 def convention_source(run: EgoRun, what: str) -> ConventionSource:
-    """The training partners and the trained ego's head for each, for `--adapter posterior`; ValueError naming `what` if the run has no per-partner heads."""
+    """The training partners, the trained ego's head for each, the game's key and planner, for `--adapter posterior`; ValueError naming `what` if the run has no per-partner heads."""
     if method(run.exp.method).single_head:
         raise ValueError(f"--adapter posterior: {what} {str(run.trial)!r} is a {run.exp.method!r} ego with one shared head; it needs one head per training partner (a modular run)")
     known = known_conventions(run.population, load_module(last_checkpoint(run.trial)), f"--adapter posterior: {what}")
-    return ConventionSource(models=known.models, known=known.heads)
+    ego_agent = "player_0" if run.ego_seat == 1 else "player_1"
+    planner = envs.best_response(run.game, run.env_config, ego_agent)
+    return ConventionSource(models=known.models, known=known.heads, key=convention_key(run.game), planner=planner)
 
 
 def require_user_study(run: EgoRun, new_task: bool, what: str) -> None:

@@ -99,7 +99,7 @@ class AgentSettings:
     greedy: bool = False
     seed: int = 0
     description: str = "agent"
-    # `--adapter posterior` (bandit): a `convention_agent.ConventionSource`, whose agent wraps the adapting one.
+    # `--adapter posterior`: a `convention_agent.ConventionSource`, whose agent wraps the adapting one (in the trained seat).
     conventions: Any = None
 
 

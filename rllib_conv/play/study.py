@@ -173,12 +173,13 @@ class Study:
         agent = None
         if condition.agent is not None:
             a = condition.agent
-            if s.game == "bandit" or record.agent_seat == a.ego_seat:
+            in_ego_seat = s.game == "bandit" or record.agent_seat == a.ego_seat
+            if in_ego_seat:
                 prior = a.priors["train" if s.game == "bandit" else "task"]  # the bandit room switches to "test" with the task
             else:
                 prior = responder_prior  # no trained module for P2: the scripted responder (see agent.py)
             agent = AdaptiveAgent(prior, step_size=a.step_size, greedy=a.greedy, seed=[a.seed, record.pair])
-            if a.conventions is not None:
+            if a.conventions is not None and in_ego_seat:  # the heads and the plan are the trained seat's
                 agent = a.conventions.agent(agent, prior, seed=[a.seed, record.pair, 1])
         if s.game == "bandit":
             return BanditRoom(record.pair, self.store, agent, record.agent_seat, condition.agent.priors if agent else None, tries=s.tries, call_later=self._call_later)

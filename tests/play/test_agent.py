@@ -10,6 +10,7 @@ import pytest
 from rllib_conv.common.user_study_table import USER_STUDY_GOOD_ARMS
 from rllib_conv.envs.bandit import user_study_prizes
 from rllib_conv.envs.blocks import GOALS, PASS, RED, encode_observation
+from rllib_conv.envs.convention_keys import bandit_context
 from rllib_conv.play.agent import (
     AdaptiveAgent,
     PartnerTable,
@@ -36,7 +37,10 @@ def sigmoid(x: float) -> float:
 
 
 def observe(agent: AdaptiveAgent, context: int, arm: int) -> None:
-    agent.learn(bandit_targets(context, CONTEXTS, ARMS, arm))
+    # As the bandit room does after a try: the person's pick is both the hindsight target and their move.
+    picked = bandit_targets(context, CONTEXTS, ARMS, arm)
+    agent.learn(picked)
+    agent.watch(picked)
 
 
 def policy(agent: AdaptiveAgent, context: int) -> np.ndarray:
@@ -201,7 +205,7 @@ def convention_agent(seed: int = 0):
     # Two training partners of the Train task, each the other's opposite in contexts B and C; on the
     # bandit a partner's best response is its own convention, so they stand in for the ego's heads too.
     low, high = BanditConventionPartner("low", [0, 2, 1]), BanditConventionPartner("high", [0, 3, 3])
-    return ConventionSource(models=[low, high], known=[low, high]).agent(AdaptiveAgent(TRAIN, ETA, seed=seed), TRAIN, seed=seed)
+    return ConventionSource(models=[low, high], known=[low, high], key=bandit_context).agent(AdaptiveAgent(TRAIN, ETA, seed=seed), TRAIN, seed=seed)
 
 
 def test_the_convention_agent_plays_a_recognised_convention_at_once_and_the_table_elsewhere() -> None:
