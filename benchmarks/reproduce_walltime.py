@@ -5,7 +5,8 @@
 
 Each slice runs from an empty folder, old code then new, one after the other on the same
 machine (it is shared and noisy: compare the ratio, not the seconds). Printed and written
-to `benchmarks/results/reproduce_walltime.json`: per slice the wall time of each, the
+to `benchmarks/results/reproduce_walltime.json` (slices not run this time are kept from the
+file, each row with the date it was measured): per slice the wall time of each, the
 ratio, the stage times, and for the new code where each stage's core-seconds went (trial
 set-up, RLlib iterations, evaluations, and what is left of cores x wall: Tune's overhead
 and idle cores), read from the `time/*` results every trial reports.
@@ -23,10 +24,11 @@ import os
 import subprocess
 import sys
 import tempfile
+from datetime import datetime
 from pathlib import Path
 from typing import Any
 
-from _common import machine, write_result
+from _common import RESULTS, machine, write_result
 
 from analysis import loaders
 
@@ -52,6 +54,16 @@ def worktree(commit: str, work: Path) -> Path:
     if not (path / "rllib_conv").is_dir():
         subprocess.run(["git", "-C", str(REPO), "worktree", "add", "--detach", str(path), commit], check=True, capture_output=True)
     return path
+
+
+def kept_slices(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The slices of the committed results file that this run did not re-run (each keeps the date it was measured)."""
+    path = RESULTS / "reproduce_walltime.json"
+    if not path.is_file():
+        return []
+    earlier = json.loads(path.read_text())
+    ran = {r["slice"] for r in rows}
+    return [{"date": earlier.get("date"), **r} for r in earlier.get("slices", []) if r["slice"] not in ran]
 
 
 def run_slice(code: Path, args: list[str], out: Path) -> dict[str, Any]:
@@ -137,6 +149,7 @@ def main() -> None:
         rows.append(
             {
                 "slice": name,
+                "date": datetime.now().isoformat(timespec="seconds"),
                 "what": spec["what"],
                 "old_wall_s": before["wall_s"],
                 "new_wall_s": after["wall_s"],
@@ -149,7 +162,7 @@ def main() -> None:
         print(f"{name}: old {before['wall_s']:.0f} s, new {after['wall_s']:.0f} s, {before['wall_s'] / after['wall_s']:.1f}x faster", flush=True)
     print()
     _print_rows(rows)
-    path = write_result("reproduce_walltime", {"old_commit": args.old_commit, "cores": cores, "slices": rows})
+    path = write_result("reproduce_walltime", {"old_commit": args.old_commit, "cores": cores, "slices": kept_slices(rows) + rows})
     print(f"wrote {path}")
     print(f"machine: {machine()['cpu']}, {cores} cores")
 
