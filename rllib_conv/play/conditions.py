@@ -203,7 +203,7 @@ def build_settings(
     the task module of its `--test-run NAME=RUN2` or, without one, `test_prior` ("oracle":
     the true marginals; "uniform"). Blocks: RUN's task is the session's. `conditions`
     (comma-separated) defaults to every agent, or `human` without any. `adapter` "posterior"
-    (bandit) has every agent adapt by the convention posterior too. `options` go to
+    has every agent in the trained ego's seat adapt by the convention posterior too. `options` go to
     `StudySettings` as they are (tries, games, person_seat, timeouts, completion code, consent).
     """
     if adapter not in ADAPTERS:
