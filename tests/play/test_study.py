@@ -7,11 +7,16 @@ from pathlib import Path
 
 import pytest
 
+from rllib_conv import envs
 from rllib_conv.cli import main
 from rllib_conv.common.user_study_table import load_user_study
+from rllib_conv.envs.convention_keys import blocks_observation
+from rllib_conv.partners.blocks import TRAIN_PERMUTATIONS, BlocksLeader, PermutationPartner
+from rllib_conv.play.agent import uniform_prior
 from rllib_conv.play.conditions import Condition, StudySettings, build_settings, parse_named
+from rllib_conv.play.convention_agent import ConventionAgent, ConventionSource
 from rllib_conv.play.export import export, participants_csv
-from rllib_conv.play.room import PlayError
+from rllib_conv.play.room import AgentSettings, PlayError
 from rllib_conv.play.store import DB_FILE, Store
 from rllib_conv.play.study import Study
 
@@ -267,3 +272,17 @@ def test_the_export_is_the_user_study_format_and_the_report_reads_it(make, tmp_p
     (root / "bandit" / "plan.json").write_text("{}")
     report = build_report(root, user_study=[path]).read_text()
     assert "### Recorded sessions (3 pairs in 1 file(s))" in report
+
+
+@pytest.mark.parametrize("person_seat, wrapped", [(2, True), (1, False)])
+def test_a_blocks_posterior_agent_sits_only_in_the_trained_seat(make, person_seat: int, wrapped: bool) -> None:
+    # `--adapter posterior` on blocks: the heads and the plan are P1's (the trained seat); a person who
+    # takes P1 gets the scripted responder, the paper's table agent, as with `--adapter table`.
+    models = [PermutationPartner(f"train-{i}", list(p)) for i, p in enumerate(TRAIN_PERMUTATIONS)]
+    leaders = [BlocksLeader(f"leader-{i}", list(p)) for i, p in enumerate(TRAIN_PERMUTATIONS)]
+    source = ConventionSource(models, leaders, blocks_observation, envs.best_response("blocks", {}, "player_0"))
+    agent = AgentSettings(priors={"task": uniform_prior}, ego_seat=1, greedy=True, conventions=source)
+    study = make(StudySettings(game="blocks", conditions=[Condition("agent", agent, "a blocks posterior agent")], person_seat=person_seat))
+    participant = study.enrol("p1", True)
+    room = study.rooms[participant.pair]
+    assert isinstance(room.agent, ConventionAgent) is wrapped and room.agent_seat == 3 - person_seat
