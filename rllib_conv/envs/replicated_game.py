@@ -10,7 +10,8 @@ sees the same episodes whether it runs alone or beside others:
   seeded with `mix(replica_seeds[r], that offset)`.
 - One `step` moves every copy that is still playing (one mover each in turn-based games), so
   every replica advances one env step per RLlib env step; an episode ends when every copy
-  has ended. Copies of a game whose length varies (Hanabi) wait for the longest one.
+  has ended. Copies of a game whose length varies (Hanabi) wait for the longest one, so a
+  replica's own env steps are counted per copy (`take_moves`).
 
 Rewards, observations and masks are those of `PettingZooMultiAgentEnv`, per copy; game
 infos are dropped (the masks are in the observations), which spares RLlib copying them.
@@ -69,6 +70,7 @@ class ReplicatedGame(MultiAgentEnv):
         self.observation_space = gym.spaces.Dict(self.observation_spaces)
         self.action_space = gym.spaces.Dict(self.action_spaces)
         self._done = [False] * len(self.copies)
+        self._moves = [0] * len(self.copies)  # env steps per copy since the last `take_moves`
 
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
         obs = {}
@@ -89,6 +91,7 @@ class ReplicatedGame(MultiAgentEnv):
             if self._done[r]:
                 continue
             results = env.step(per_copy[r])[:4]
+            self._moves[r] += 1
             ended = bool(results[2].get("__all__") or results[3].get("__all__"))
             for merged, part in zip(out, results):
                 merged.update({replica_agent(a, r): v for a, v in part.items() if a != "__all__"})
@@ -101,6 +104,15 @@ class ReplicatedGame(MultiAgentEnv):
         if not self.agents:  # RLlib expects every agent of a step's result to be listed
             self.agents = [a for a in obs]
         return obs, rewards, terms, truncs, {}
+
+    def take_moves(self) -> list[int]:
+        """Each copy's env steps since the last call (then zero): what a replica played, exactly.
+
+        RLlib's per-module step counts are counts of observations, which in a turn-based game
+        include each agent's final one: on blocks 7 per 6-move episode.
+        """
+        moves, self._moves = self._moves, [0] * len(self.copies)
+        return moves
 
     def get_rng_state(self) -> list[dict | None]:
         """Every copy's game RNG state, for exact resumes."""

@@ -61,7 +61,7 @@ from rllib_conv.training.experiment import ExperimentConfig, trial_config
 from rllib_conv.training.head_pick import HeadPick, pick_head
 from rllib_conv.training.packs import cluster_cpus, packs, write_tables
 from rllib_conv.training.replica_export import copy_replica, replica_module
-from rllib_conv.training.replica_steps import is_parallel, replica_env_steps
+from rllib_conv.training.replica_steps import replica_env_steps
 from rllib_conv.training.settings import MappingSettings
 from rllib_conv.training.trainable import AlgorithmTrainable
 from rllib_conv.training.tuning import fit, job_param_space, spec_name
@@ -158,7 +158,6 @@ class AdaptTrainable(AlgorithmTrainable):
         self.replicas = [Replica(c.setup, c.load) for c in self.curves]
         self.algo = build_algorithm(self.replicas)
         self.total = protocol(self.cfg, self.curves[0].trained)[1]
-        self.parallel = is_parallel(self.algo)
         module = learner_module(self.algo)
         self.plain = [replica_module(module, r, rep) for r, rep in enumerate(self.replicas)]  # evaluation copies
         k = len(self.curves)
@@ -286,7 +285,7 @@ class AdaptTrainable(AlgorithmTrainable):
             if self.cfg.head_init == "posterior":
                 with self.timings.measure("evaluate"):
                     self._update_posteriors()
-            self.steps = [self.offset[r] + replica_env_steps(result, c.setup, r, self.parallel) for r, c in enumerate(self.curves)]
+            self.steps = [self.offset[r] + replica_env_steps(result, r) for r in range(len(self.curves))]
         return {
             "steps": min(self.steps),
             "mean_return": sum(returns) / len(returns),

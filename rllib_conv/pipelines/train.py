@@ -39,7 +39,7 @@ from rllib_conv.training.experiment import ExperimentConfig, validate
 from rllib_conv.training.maml import MetaTrainer
 from rllib_conv.training.marginals import marginal_distances, marginal_states
 from rllib_conv.training.replica_export import export_replica, replica_module
-from rllib_conv.training.replica_steps import is_parallel, replica_env_steps
+from rllib_conv.training.replica_steps import replica_env_steps
 from rllib_conv.training.trainable import AlgorithmTrainable
 from rllib_conv.training.tuning import check_spec, fit, job_param_space, spec_name, to_param_space
 from rllib_conv.training.weights import learner_module
@@ -49,7 +49,7 @@ EXPORT_KEY = "export_to"  # a stage job's folder for its replicas (default: its 
 HISTORY_FILE = "replica_history.json"  # in a trial checkpoint: every replica's progress rows so far
 
 
-def summarize(result: dict[str, Any], setup: EgoSetup, replica: int, parallel: bool) -> dict[str, Any]:
+def summarize(result: dict[str, Any], setup: EgoSetup, replica: int) -> dict[str, Any]:
     """Replica `replica`'s part of RLlib's result dict: its env steps, per-partner returns, regulariser, head size."""
     module_returns = result.get("env_runners", {}).get("module_episode_returns_mean", {})
     per_partner = {
@@ -57,7 +57,7 @@ def summarize(result: dict[str, Any], setup: EgoSetup, replica: int, parallel: b
     }
     learners = result.get("learners", {}).get(replica_id(TASK_ID, replica), {})
     return {
-        "env_steps": replica_env_steps(result, setup, replica, parallel),
+        "env_steps": replica_env_steps(result, replica),
         "return_mean": float(np.mean(list(per_partner.values()))) if per_partner else math.nan,
         **per_partner,
         **{key: float(learners.get(key, math.nan)) for key in (MARGINAL_REG_KEY, HEAD_L2_KEY)},
@@ -100,13 +100,12 @@ class EgoTrainable(AlgorithmTrainable):
             if method(exp.method).meta_learned
             else None
         )
-        self.parallel = is_parallel(self.algo)
         self.history: list[list[dict[str, Any]]] = [[] for _ in seeds]
 
     def advance(self) -> dict[str, Any]:
         with self.timings.measure("iterate"):
             result = self.meta.step() if self.meta else self.algo.train()
-        rows = [summarize(result, rep.setup, r, self.parallel) for r, rep in enumerate(self.replicas)]
+        rows = [summarize(result, rep.setup, r) for r, rep in enumerate(self.replicas)]
         for history, row in zip(self.history, rows):
             history.append({"training_iteration": self.iteration + 1, **row})
         metrics = {key: float(np.mean([row[key] for row in rows])) for key in rows[0]}

@@ -44,7 +44,7 @@ from rllib_conv.training.evaluate import ego_head_partner, player_return
 from rllib_conv.training.experiment import ExperimentConfig, trial_config
 from rllib_conv.training.packs import cluster_cpus, packs, write_tables
 from rllib_conv.training.replica_export import replica_module
-from rllib_conv.training.replica_steps import is_parallel, replica_env_steps
+from rllib_conv.training.replica_steps import replica_env_steps
 from rllib_conv.training.settings import MappingSettings
 from rllib_conv.training.trainable import AlgorithmTrainable
 from rllib_conv.training.tuning import fit, job_param_space, spec_name
@@ -173,8 +173,7 @@ class ZeroShotTrainable(AlgorithmTrainable):
         with self.timings.measure("iterate"):
             result = self.algo.train()
         replicas = self.head_replicas if self.phase == 1 else self.task_replicas
-        parallel = is_parallel(self.algo)
-        steps = [replica_env_steps(result, rep.setup, r, parallel) for r, rep in enumerate(replicas)]
+        steps = [replica_env_steps(result, r) for r in range(len(replicas))]
         returns = [v for k, v in result["env_runners"].get("module_episode_returns_mean", {}).items() if k.startswith("partner@")]
         head_steps, task_steps = self.plans[0]["head_steps"], self.plans[0]["task_steps"]
         done_steps = sum(min(s, head_steps) for s in steps) if self.phase == 1 else len(steps) * head_steps + sum(min(s, task_steps) for s in steps)

@@ -5,7 +5,8 @@ its `MetricsLogger`; on our short episodes of small games that bookkeeping costs
 sampling itself. This runner keeps the same numbers (env, agent and module steps; episode
 returns, lengths and per-agent / per-module returns over the same smoothing window of
 `metrics_num_episodes_for_smoothing` episodes) in plain counters and windows, and hands them
-to the logger once per `get_metrics` call. Sampling itself is RLlib's, unchanged.
+to the logger once per `get_metrics` call. Sampling itself is RLlib's, unchanged. It also
+logs each replica's own env steps (`ReplicatedGame.take_moves`), which RLlib has no count of.
 """
 
 from __future__ import annotations
@@ -35,6 +36,9 @@ from ray.rllib.utils.metrics import (
     NUM_MODULE_STEPS_SAMPLED,
     NUM_MODULE_STEPS_SAMPLED_LIFETIME,
 )
+
+# Env steps each replica of a `ReplicatedGame` played (`training/replica_steps.py` reads them).
+NUM_REPLICA_STEPS_SAMPLED_LIFETIME = "num_replica_steps_sampled_lifetime"
 
 
 class LeanEnvRunner(MultiAgentEnvRunner):
@@ -91,6 +95,8 @@ class LeanEnvRunner(MultiAgentEnvRunner):
         for mid, n in lean["module_steps"].items():
             log((NUM_MODULE_STEPS_SAMPLED, mid), n, reduce="sum")
             log((NUM_MODULE_STEPS_SAMPLED_LIFETIME, mid), n, reduce="lifetime_sum")
+        for r, n in enumerate(self._replica_moves()):
+            log((NUM_REPLICA_STEPS_SAMPLED_LIFETIME, str(r)), n, reduce="lifetime_sum")
         lean["env_steps"], lean["episodes"] = 0, 0
         lean["agent_steps"].clear()
         lean["module_steps"].clear()
@@ -110,6 +116,16 @@ class LeanEnvRunner(MultiAgentEnvRunner):
             for key, table in ((EPISODE_AGENT_RETURN_MEAN, lean["agents"]), (EPISODE_AGENT_STEPS, lean["agent_len"]), (EPISODE_MODULE_RETURN_MEAN, lean["modules"])):
                 for name, values in table.items():
                     log((key, name), mean(values), window=1)
+
+    def _replica_moves(self) -> list[int]:
+        """Env steps per replica since the last flush, summed over this runner's `ReplicatedGame`s (none for other envs)."""
+        totals: list[int] = []
+        for env in getattr(self.env, "envs", []):
+            take = getattr(env.unwrapped, "take_moves", None)
+            for r, n in enumerate(take() if take else []):
+                totals.extend([0] * (r + 1 - len(totals)))
+                totals[r] += n
+        return totals
 
     def get_metrics(self) -> Any:
         result = super().get_metrics()  # logs this call's finished episodes through `_log_episode_metrics`

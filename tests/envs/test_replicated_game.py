@@ -76,3 +76,24 @@ def test_an_episode_ends_when_every_copy_has_ended() -> None:
 def test_a_config_without_a_game_is_refused() -> None:
     with pytest.raises(ValueError, match="needs env_config\\['game'\\]"):
         ReplicatedGame({"replica_seeds": [0]})
+
+
+@pytest.mark.parametrize("game", ["blocks", "hanabi"])
+def test_each_copy_counts_its_own_moves(game: str) -> None:
+    # What a replica played, exactly: the steps in which its copy had a mover. RLlib's per-module
+    # counts are counts of observations (each agent's final one included: 7 per 6-move blocks
+    # episode), and in Hanabi a finished copy waits for the longest one.
+    env = replicated(game, [0, 1, 2])
+    expected = [0, 0, 0]
+    for episode in range(2):
+        obs, _ = env.reset(seed=episode)
+        done = False
+        while not done:
+            for r in {split_agent(a)[1] for a in obs}:
+                expected[r] += 1
+            obs, _, terms, truncs, _ = env.step(first_mover_actions(obs))
+            done = terms["__all__"] or truncs["__all__"]
+            obs = {a: o for a, o in obs.items() if not (terms.get(a) or truncs.get(a))}  # final observations ask for no move
+    assert env.take_moves() == expected and env.take_moves() == [0, 0, 0]
+    if game == "blocks":
+        assert expected == [12, 12, 12]

@@ -74,7 +74,7 @@ def _run(exps: list[ExperimentConfig], iterations: int, replica: int = 0):
     replicas = [Replica(resolve(exp)) for exp in exps]
     algo = build_algorithm(replicas)
     try:
-        metrics = [summarize(algo.train(), replicas[replica].setup, replica, parallel=True) for _ in range(iterations)]
+        metrics = [summarize(algo.train(), replicas[replica].setup, replica) for _ in range(iterations)]
         return metrics, learner_module(algo)[STACK_ID].task_state(replica)
     finally:
         algo.stop()
