@@ -66,7 +66,7 @@ class ConventionAgent:
         self._rng = np.random.default_rng(seed)
 
     def _new_player(self) -> PosteriorPlayer:
-        # A player plans once, from the evidence it is built with: a new one after new evidence.
+        # A player plans once, from the evidence it is built with (it reads `posterior` live otherwise).
         return PosteriorPlayer("agent", self.posterior, self._known, _TablePlayer(self.table), planner=self._planner)
 
     @property
@@ -100,7 +100,8 @@ class ConventionAgent:
         if self.table.prior is self.home_prior and moves:
             obs, masks, actions = zip(*moves)
             self.posterior.observe(np.stack(obs), np.stack(masks), np.array(actions))
-            self._player = self._new_player()
+            if self._planner is not None:  # the plan is the one thing that does not follow the evidence by itself
+                self._player = self._new_player()
 
 
 @dataclass(frozen=True)

@@ -119,13 +119,8 @@ class LeanEnvRunner(MultiAgentEnvRunner):
 
     def _replica_moves(self) -> list[int]:
         """Env steps per replica since the last flush, summed over this runner's `ReplicatedGame`s (none for other envs)."""
-        totals: list[int] = []
-        for env in getattr(self.env, "envs", []):
-            take = getattr(env.unwrapped, "take_moves", None)
-            for r, n in enumerate(take() if take else []):
-                totals.extend([0] * (r + 1 - len(totals)))
-                totals[r] += n
-        return totals
+        takes = [env.unwrapped.take_moves() for env in getattr(self.env, "envs", []) if hasattr(env.unwrapped, "take_moves")]
+        return [sum(per_env) for per_env in zip(*takes)]  # every sub-env holds the same replicas
 
     def get_metrics(self) -> Any:
         result = super().get_metrics()  # logs this call's finished episodes through `_log_episode_metrics`

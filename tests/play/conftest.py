@@ -1,4 +1,4 @@
-"""Shared by the play tests: a small trained ego, study servers (in a thread or a process), headless chromium."""
+"""Shared by the play tests: a small trained ego, a blocks convention source, study servers (in a thread or a process), headless chromium."""
 
 from __future__ import annotations
 
@@ -6,12 +6,24 @@ from pathlib import Path
 
 import pytest
 
+from rllib_conv import envs
+from rllib_conv.envs.convention_keys import blocks_observation
+from rllib_conv.partners.blocks import TRAIN_PERMUTATIONS, BlocksLeader, PermutationPartner
 from rllib_conv.play.conditions import StudySettings
+from rllib_conv.play.convention_agent import ConventionSource
 from rllib_conv.play.server import StudyServer
 from rllib_conv.play.store import DB_FILE
 from tests.play.servers import ADMIN_TOKEN, StudyProcess
 
 CHROMIUM = "/usr/bin/chromium"
+
+
+@pytest.fixture
+def blocks_conventions() -> ConventionSource:
+    """`--adapter posterior` on blocks without a trained ego: the 3 training permutations as the posterior's models, their leaders as the heads."""
+    models = [PermutationPartner(f"train-{i}", list(p)) for i, p in enumerate(TRAIN_PERMUTATIONS)]
+    leaders = [BlocksLeader(f"leader-{i}", list(p)) for i, p in enumerate(TRAIN_PERMUTATIONS)]
+    return ConventionSource(models, leaders, blocks_observation, envs.best_response("blocks", {}, "player_0"))
 
 
 @pytest.fixture(scope="session")

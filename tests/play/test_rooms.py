@@ -12,12 +12,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from rllib_conv import envs
 from rllib_conv.common.user_study_table import USER_STUDY_GOOD_ARMS, load_user_study
 from rllib_conv.envs.bandit import user_study_prizes
-from rllib_conv.envs.convention_keys import bandit_context, blocks_observation
+from rllib_conv.envs.convention_keys import bandit_context
 from rllib_conv.partners.bandit import BanditConventionPartner
-from rllib_conv.partners.blocks import TEST_PERMUTATIONS, TRAIN_PERMUTATIONS, BlocksLeader, PermutationPartner
+from rllib_conv.partners.blocks import TEST_PERMUTATIONS, TRAIN_PERMUTATIONS, PermutationPartner
 from rllib_conv.play.agent import AdaptiveAgent, bandit_oracle_prior, responder_prior, uniform_prior
 from rllib_conv.play.bandit_room import BanditRoom
 from rllib_conv.play.blocks_room import BlocksRoom
@@ -322,22 +321,19 @@ def test_blocks_agent_p1_moves_first_and_learns_the_persons_answer(blocks_store:
 
 
 @pytest.mark.parametrize("perm, known_from", [(TRAIN_PERMUTATIONS[1], 1), (TEST_PERMUTATIONS[0], 2)])
-def test_a_blocks_convention_agent_plans_against_the_persons_moves(tmp_path: Path, perm: tuple[int, ...], known_from: int) -> None:
+def test_a_blocks_convention_agent_plans_against_the_persons_moves(tmp_path: Path, blocks_conventions: ConventionSource, perm: tuple[int, ...], known_from: int) -> None:
     # `--adapter posterior` on blocks (not in the paper): the training partners are the 3 training
     # permutations, the heads their leaders. A person following a training permutation is met on every
     # goal from game 2 on (one answer names it); one recombining them cell by cell from game 3 on (with
     # these goals, its answers to the red cells that matter are in by then). The paper's table agent on
     # a uniform prior, fed the same hindsight targets, is still far from it.
-    models = [PermutationPartner(f"train-{i}", list(p)) for i, p in enumerate(TRAIN_PERMUTATIONS)]
-    leaders = [BlocksLeader(f"leader-{i}", list(p)) for i, p in enumerate(TRAIN_PERMUTATIONS)]
-    source = ConventionSource(models, leaders, blocks_observation, envs.best_response("blocks", {}, "player_0"))
     person = PermutationPartner("person", list(perm))
     scores = {}
     for adapter in ("table", "posterior"):
         store = open_store(tmp_path / adapter, "blocks")  # room 1 of each: the same goals
         pair = seat_pair(store, "agent", agent_seat=1, game="blocks")
         agent = AdaptiveAgent(uniform_prior, seed=0)
-        room = BlocksRoom(pair, store, agent if adapter == "table" else source.agent(agent, uniform_prior, seed=0), 1, games=12, seed=0)
+        room = BlocksRoom(pair, store, agent if adapter == "table" else blocks_conventions.agent(agent, uniform_prior, seed=0), 1, games=12, seed=0)
         room.start()
         while len(room.results) < 12:
             obs = room.env.observe("player_1")

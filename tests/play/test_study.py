@@ -7,11 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from rllib_conv import envs
 from rllib_conv.cli import main
 from rllib_conv.common.user_study_table import load_user_study
-from rllib_conv.envs.convention_keys import blocks_observation
-from rllib_conv.partners.blocks import TRAIN_PERMUTATIONS, BlocksLeader, PermutationPartner
 from rllib_conv.play.agent import uniform_prior
 from rllib_conv.play.conditions import Condition, StudySettings, build_settings, parse_named
 from rllib_conv.play.convention_agent import ConventionAgent, ConventionSource
@@ -275,13 +272,10 @@ def test_the_export_is_the_user_study_format_and_the_report_reads_it(make, tmp_p
 
 
 @pytest.mark.parametrize("person_seat, wrapped", [(2, True), (1, False)])
-def test_a_blocks_posterior_agent_sits_only_in_the_trained_seat(make, person_seat: int, wrapped: bool) -> None:
+def test_a_blocks_posterior_agent_sits_only_in_the_trained_seat(make, blocks_conventions: ConventionSource, person_seat: int, wrapped: bool) -> None:
     # `--adapter posterior` on blocks: the heads and the plan are P1's (the trained seat); a person who
     # takes P1 gets the scripted responder, the paper's table agent, as with `--adapter table`.
-    models = [PermutationPartner(f"train-{i}", list(p)) for i, p in enumerate(TRAIN_PERMUTATIONS)]
-    leaders = [BlocksLeader(f"leader-{i}", list(p)) for i, p in enumerate(TRAIN_PERMUTATIONS)]
-    source = ConventionSource(models, leaders, blocks_observation, envs.best_response("blocks", {}, "player_0"))
-    agent = AgentSettings(priors={"task": uniform_prior}, ego_seat=1, greedy=True, conventions=source)
+    agent = AgentSettings(priors={"task": uniform_prior}, ego_seat=1, greedy=True, conventions=blocks_conventions)
     study = make(StudySettings(game="blocks", conditions=[Condition("agent", agent, "a blocks posterior agent")], person_seat=person_seat))
     participant = study.enrol("p1", True)
     room = study.rooms[participant.pair]
