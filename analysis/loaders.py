@@ -15,7 +15,6 @@ is the method label such as `modular-lam0.5`, `lowz-lam0.5`, `agg`, `no_task_log
 from __future__ import annotations
 
 import json
-import re
 from pathlib import Path
 from typing import Any, Iterable
 
@@ -41,6 +40,7 @@ from rllib_conv.common.run_folders import (
     expected_stages,
     experiment_of,
     marker_path,
+    read_marker,
     read_trial_config,
     split_experiment,
     trial_folders,
@@ -96,21 +96,27 @@ STAGE_COLUMNS = ["game", "stage", "expected", "done", "seconds"]
 
 
 def load_stage_times(root: str | Path) -> pd.DataFrame:
-    """One row per (game, stage) of `STAGES`: whether the game's plan has it, whether its `<stage>.done` marker exists, and the wall seconds it records."""
+    """One row per (game, stage) of `STAGES`: whether the game's plan has it, whether it is done, and the wall seconds its marker records.
+
+    A stage is done when its `<stage>.done` marker exists and covers every item the plan lists
+    for it (plan.json's `items`; a marker left by an earlier, smaller plan of the folder does
+    not count). The seconds add up every run of the stage on the folder.
+    """
     rows = []
     for game_dir in game_dirs(root):
         plan = read_plan(game_dir)
         game = str(plan["game"])
         # Reproductions record their stages in plan.json; older ones ran the fixed plans of their game.
         expected = plan.get("stages") or expected_stages(game, bool(plan.get("quick", False)))
+        items = plan.get("items", {})
         for stage in STAGES:
             marker = marker_path(game_dir, stage)
-            seconds = float("nan")
-            if marker.is_file():
-                # The marker's text is the stage's wall time, written as "123.4 s".
-                match = re.match(r"\s*([0-9.eE+-]+)", marker.read_text())
-                seconds = float(match.group(1)) if match else float("nan")
-            rows.append({"game": game, "stage": stage, "expected": stage in expected or marker.is_file(), "done": marker.is_file(), "seconds": seconds})
+            try:
+                seconds, covered = read_marker(marker) if marker.is_file() else (float("nan"), [])
+            except ValueError:  # not a marker this code wrote ("<seconds> s", then items)
+                seconds, covered = float("nan"), []
+            done = marker.is_file() and set(items.get(stage, [])) <= set(covered)
+            rows.append({"game": game, "stage": stage, "expected": stage in expected or marker.is_file(), "done": done, "seconds": seconds})
     return pd.DataFrame(rows, columns=STAGE_COLUMNS)
 
 

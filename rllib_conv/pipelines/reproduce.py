@@ -212,14 +212,15 @@ class Reproduction:
         """Run every unfinished stage; return the wall time of each stage run now."""
         self.root.mkdir(parents=True, exist_ok=True)
         stages = self.stages()
-        plan = {"game": self.plan.game, "seeds": self.plan.seeds, "quick": self.plan.quick, "train_steps": self.plan.train_steps, "stages": [n for n, _ in stages]}
+        # The items let a report tell a stage this plan finished from one an earlier, smaller plan finished.
+        items = {n: self.stage_items(n) for n, _ in stages}
+        plan = {"game": self.plan.game, "seeds": self.plan.seeds, "quick": self.plan.quick, "train_steps": self.plan.train_steps, "stages": list(items), "items": items}
         (self.root / PLAN_FILE).write_text(json.dumps(plan, indent=2))
         times = {}
         for name, stage in stages:
             marker = marker_path(self.root, name)
-            items = self.stage_items(name)
             earlier, covered = read_marker(marker)
-            missing = [i for i in items if i not in covered]
+            missing = [i for i in items[name] if i not in covered]
             if marker.is_file() and not missing:
                 self.log(f"[{self.plan.game}] {name}: done before, skipped")
                 continue

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 import shutil
 from pathlib import Path
@@ -50,6 +51,22 @@ def test_stage_times_missing_marker(copy: Path) -> None:
     st = loaders.load_stage_times(copy).set_index("stage")
     assert not st.loc["zeroshot", "done"] and st.loc["zeroshot", "expected"] and math.isnan(st.loc["zeroshot", "seconds"])
     assert st.loc["train", "done"]
+
+
+def test_stage_done_only_when_its_marker_covers_the_plan(copy: Path) -> None:
+    # A 5-seed plan over a folder whose zero-shot marker a stopped 5-seed run left at the 3-seed items.
+    game = copy / "bandit"
+    plan = {"game": "bandit", "seeds": [0, 1, 2, 3, 4], "quick": False, "stages": ["train", "zeroshot"],
+            "items": {"train": ["a seeds=0,1,2,3,4"], "zeroshot": ["z seeds=0,1,2,3,4"]}}
+    (game / "plan.json").write_text(json.dumps(plan))
+    (game / "train.done").write_text("10.0 s\na seeds=0,1,2\na seeds=0,1,2,3,4\n")
+    (game / "zeroshot.done").write_text("7.5 s\nz seeds=0,1,2\n")
+    st = loaders.load_stage_times(copy).set_index("stage")
+    assert st.loc["train", "done"] and st.loc["train", "seconds"] == 10.0
+    assert not st.loc["zeroshot", "done"] and st.loc["zeroshot", "expected"] and st.loc["zeroshot", "seconds"] == 7.5
+    (game / "zeroshot.done").write_text("")  # not a marker this code wrote
+    st = loaders.load_stage_times(copy).set_index("stage")
+    assert not st.loc["zeroshot", "done"] and math.isnan(st.loc["zeroshot", "seconds"])
 
 
 def test_training_one_row_per_trial_and_iteration() -> None:

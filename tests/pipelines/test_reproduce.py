@@ -87,6 +87,7 @@ def test_a_stage_reruns_only_when_the_plan_asks_for_more_than_its_marker_covers(
     # Zero-shot's own egos (bandit-s2-hand is a zero-shot population, no_task_logits a zero-shot method) train here too.
     trained = ["modular-lam0.5", "agg", "no_task_logits"]
     assert covered == [f"bandit-s2-hand__{m} seeds=0,1,2 steps=10000" for m in trained] and seconds >= 0
+    assert json.loads((tmp_path / "plan.json").read_text())["items"] == {"train": covered}  # what a report checks the marker against
 
     Reproduction(narrow(plan_for("bandit"), ["bandit-s2-hand"], ["agg"]), tmp_path, log=logs.append).run()
     assert len(calls) == 1 and logs[-1] == "[bandit] train: done before, skipped"

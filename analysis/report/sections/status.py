@@ -38,7 +38,7 @@ def status_section(ctx: Context) -> str:
         rows.append([game, f"`{game_dir}`", plan.get("seeds", "?"), "yes" if plan.get("quick") else "no", ", ".join(done) or "none", ", ".join(missing) or "none", trials, trained_steps(curves)])
         if missing:
             ctx.notes.append(f"{game}: stage(s) not finished: {', '.join(missing)} (their results are partial or absent below)")
-    lines.append(md_table(["game", "folder", "seeds", "quick", "stages done (wall time)", "stages not done", "trained-ego trials with logs", "env steps per ego"], rows))
+    lines.append(md_table(["game", "folder", "seeds", "quick", "stages done (wall time, all runs on the folder)", "stages not done", "trained-ego trials with logs", "env steps per ego"], rows))
     for game in loaders.MAX_SCORE:
         if game not in ctx.plans:
             ctx.notes.append(f"{game}: no folder under the root; its figures and numbers are skipped")
