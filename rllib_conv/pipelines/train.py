@@ -38,6 +38,7 @@ from rllib_conv.training.evaluate import ego_head_partner, player_return
 from rllib_conv.training.experiment import ExperimentConfig, validate
 from rllib_conv.training.maml import MetaTrainer
 from rllib_conv.training.marginals import marginal_distances, marginal_states
+from rllib_conv.training.packs import cluster_cpus, spread_over_cores
 from rllib_conv.training.replica_export import export_replica, replica_module
 from rllib_conv.training.replica_steps import replica_env_steps
 from rllib_conv.training.trainable import AlgorithmTrainable
@@ -228,6 +229,7 @@ def train_stage(
     todo = [left for job in jobs if (left := _unfinished(job))]
     if not todo:
         return []
+    todo = spread_over_cores(todo, REPLICA_SEEDS, cluster_cpus(address))
     name = spec_name(TRAIN_STAGE_PREFIX, {"experiments": names, "jobs": jobs})
     spec = {"experiments": names, "jobs": jobs}
     results = fit(EgoTrainable, spec, job_param_space(todo), name, storage, address, _checkpoints(first), StageProgress(label), loggers=loggers)

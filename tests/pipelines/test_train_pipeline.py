@@ -113,6 +113,23 @@ def test_a_recorded_experiment_may_grow_its_seeds_but_not_change(tmp_path) -> No
         check_spec(tmp_path, {**spec, "seed": {"grid_search": [7]}})  # only the key named may differ
 
 
+def test_a_stage_job_is_cut_to_fill_the_cores_and_each_seed_trains_as_alone(ray_session, tmp_path) -> None:
+    # One job of 2 seeds on the session's 2 CPUs runs as 2 trials (packs.spread_over_cores).
+    raw = tiny_experiment("cut")
+    assert train_stage([{**raw, "seed": {"grid_search": [0, 1]}}], storage=tmp_path / "both") == ["cut"]
+    (stage,) = (tmp_path / "both").glob("train-stage-*")
+    assert len([p for p in stage.iterdir() if p.is_dir() and p.name.startswith("EgoTrainable")]) == 2
+    assert train_stage([{**raw, "seed": {"grid_search": [1]}}], storage=tmp_path / "alone") == ["cut"]
+
+    def seed_eval(root, seed):
+        (folder,) = [p for p in (root / "cut").rglob(f"seed={seed}") if p.is_dir()]
+        return {k: v for k, v in json.loads((folder / EVAL_FILE).read_text()).items() if k.startswith("eval/")}
+
+    alone = seed_eval(tmp_path / "alone", 1)
+    assert seed_eval(tmp_path / "both", 1) == pytest.approx(alone, rel=1e-5, abs=1e-6)
+    assert seed_eval(tmp_path / "both", 0) != pytest.approx(alone, rel=1e-5, abs=1e-6)
+
+
 def test_a_train_stage_with_more_seeds_trains_the_new_seeds_only(ray_session, tmp_path) -> None:
     raw = tiny_experiment("grown")
     assert train_stage([{**raw, "seed": {"grid_search": [0]}}], storage=tmp_path) == ["grown"]
