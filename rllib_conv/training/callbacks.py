@@ -134,9 +134,13 @@ class StageProgress(_ThrottledPrint):
 
     `log` prints the line (default `print`). Steps come from each trial's latest result
     (`STEPS_DONE`, `STEPS_TOTAL`; a resumed run knows its trials' last results); a trial
-    not yet started counts as the mean known total. The ETA extrapolates this run's step
-    rate: steps played before a resume do not count towards it, and a resumed trial that
-    starts again from zero (an adaptation pack) counts from zero.
+    not yet started counts as the mean known total. The ETA schedules what is left on the
+    cores the stage has shown it uses (the most trials seen running at once): each running
+    trial finishes its own steps, then the waiting ones take the first free core, at the
+    step rate one running trial has had in this run. So a last trial left alone on one core
+    counts at one core's speed, not the whole stage's. Steps played before a resume do not
+    count towards the rate, and a resumed trial that starts again from zero (an adaptation
+    pack) counts from zero.
     """
 
     def __init__(self, label: str, every: float = 30.0, log: Any = print) -> None:
@@ -145,35 +149,66 @@ class StageProgress(_ThrottledPrint):
         self._last_print = self._start
         self._latest: dict[str, dict[str, Any]] = {}
         self._played = 0.0  # env steps played in this run
+        self._busy = 0.0  # trial-seconds spent running in this run
+        self._clock = self._start  # when `_busy` was last brought up to date
+        self._cores = 1  # the most trials seen running at once
 
-    def _steps(self, trials: list) -> tuple[float, float]:
-        """Env steps played and to play over `trials` (unstarted trials at the mean known total)."""
-        done, totals = 0.0, []
+    def _result(self, trial: Any) -> dict[str, Any]:
+        return self._latest.get(trial.trial_id) or getattr(trial, "last_result", None) or {}
+
+    def _work(self, trials: list) -> tuple[list[float], list[float], float]:
+        """Env steps left for the running trials and for the waiting ones (unstarted at the mean known total), and the steps played."""
+        known = [r for t in trials if STEPS_DONE in (r := self._result(t))]
+        mean = sum(float(r.get(STEPS_TOTAL, r[STEPS_DONE])) for r in known) / len(known) if known else 0.0
+        running, waiting, done = [], [], 0.0
         for trial in trials:
-            result = self._latest.get(trial.trial_id) or getattr(trial, "last_result", None) or {}
-            if STEPS_DONE in result:
-                done += float(result[STEPS_DONE])
-                totals.append(float(result.get(STEPS_TOTAL, result[STEPS_DONE])))
-        mean = sum(totals) / len(totals) if totals else 0.0
-        return done, sum(totals) + (len(trials) - len(totals)) * mean
+            result = self._result(trial)
+            played = float(result.get(STEPS_DONE, 0.0))
+            done += played
+            if trial.status == "TERMINATED":
+                continue
+            left = max(0.0, float(result.get(STEPS_TOTAL, mean)) - played)
+            (running if trial.status == "RUNNING" else waiting).append(left)
+        return running, waiting, done
+
+    def _tick(self, trials: list) -> None:
+        """Add the trial-seconds since the last call (at the number of trials running now)."""
+        now = time.monotonic()
+        running = sum(t.status == "RUNNING" for t in trials)
+        self._busy += (now - self._clock) * running
+        self._clock = now
+        self._cores = max(self._cores, running)
+
+    def eta_seconds(self, trials: list) -> float | None:
+        """Seconds until every trial is done, None before any rate is known."""
+        running, waiting, _ = self._work(trials)
+        if not running and not waiting:
+            return 0.0
+        if self._played <= 0 or self._busy <= 0:
+            return None
+        cores = sorted(running) + [0.0] * max(0, self._cores - len(running))
+        for left in waiting:  # Tune starts a waiting trial on the first core that frees up
+            cores[cores.index(min(cores))] += left
+        return max(cores) / (self._played / self._busy)  # at the env steps per running trial-second
 
     def line(self, trials: list) -> str:
         """The progress line for `trials` now."""
+        self._tick(trials)
         finished = sum(t.status == "TERMINATED" for t in trials)
-        done, total = self._steps(trials)
+        running, waiting, done = self._work(trials)
+        eta = self.eta_seconds(trials)
         elapsed = time.monotonic() - self._start
-        rate = self._played / elapsed if elapsed > 0 else 0.0
-        if finished == len(trials):
-            eta = "0m00s"
-        else:
-            eta = _duration((total - done) / rate) if rate > 0 and total > done else "?"
-        return f"{self.label}: {finished}/{len(trials)} trials done, {_count(done)}/{_count(total)} env steps, {_duration(elapsed)} elapsed, ETA {eta}"
+        return (
+            f"{self.label}: {finished}/{len(trials)} trials done, {_count(done)}/{_count(done + sum(running) + sum(waiting))} env steps, "
+            f"{_duration(elapsed)} elapsed, ETA {'?' if eta is None else _duration(eta)}"
+        )
 
     text = line
 
     def on_trial_result(self, iteration: int, trials: list, trial: Any, result: dict[str, Any], **info: Any) -> None:
+        self._tick(trials)
         # Before: the trial's previous result in this run, or what an earlier run left (a restored trial's last result).
-        before = self._latest.get(trial.trial_id) or getattr(trial, "last_result", None) or {}
+        before = self._result(trial)
         now, then = float(result.get(STEPS_DONE, 0.0)), float(before.get(STEPS_DONE, 0.0))
         self._played += now - then if now >= then else now  # fewer steps than before: it started again
         self._latest[trial.trial_id] = result

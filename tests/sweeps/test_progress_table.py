@@ -29,7 +29,8 @@ def test_table_rows_hold_swept_values_and_latest_metrics() -> None:
 
 def test_stage_line_counts_this_runs_steps_for_its_eta(monkeypatch) -> None:
     # A resumed stage: pack "a" had played 500 of its 1000 steps before the kill and starts again from
-    # zero; "b" is new. In this run's first 10 s they play 100 + 200 steps: 30 steps/s, 1700 left, 57 s.
+    # zero; "b" is new. In this run's first 10 s, both running, they play 100 + 200 steps: 300 steps in
+    # 20 trial-seconds, 15 steps/s a trial; a has 900 left, b 800, one core each: 60 s.
     now = [0.0]
     monkeypatch.setattr(callbacks.time, "monotonic", lambda: now[0])
     progress = callbacks.StageProgress("[bandit] adapt", every=1e9, log=lambda line: None)
@@ -37,8 +38,34 @@ def test_stage_line_counts_this_runs_steps_for_its_eta(monkeypatch) -> None:
     now[0] = 10.0
     progress.on_trial_result(1, trials, trials[0], {STEPS_DONE: 100, STEPS_TOTAL: 1000})
     progress.on_trial_result(1, trials, trials[1], {STEPS_DONE: 200, STEPS_TOTAL: 1000})
-    assert progress.line(trials) == "[bandit] adapt: 0/2 trials done, 0.3k/2.0k env steps, 0m10s elapsed, ETA 0m57s"
-    # Later results add what was played since the trial's previous one: 600 steps in 20 s, 1400 left.
+    assert progress.line(trials) == "[bandit] adapt: 0/2 trials done, 0.3k/2.0k env steps, 0m10s elapsed, ETA 1m00s"
+    # Later results add what was played since the trial's previous one: 600 steps in 40 trial-seconds;
+    # b's 800 left decide: 53 s.
     now[0] = 20.0
     progress.on_trial_result(2, trials, trials[0], {STEPS_DONE: 400, STEPS_TOTAL: 1000})
-    assert progress.line(trials) == "[bandit] adapt: 0/2 trials done, 0.6k/2.0k env steps, 0m20s elapsed, ETA 0m47s"
+    assert progress.line(trials) == "[bandit] adapt: 0/2 trials done, 0.6k/2.0k env steps, 0m20s elapsed, ETA 0m53s"
+
+
+def test_stage_eta_counts_a_last_trial_alone_on_one_core(monkeypatch) -> None:
+    # Five trials of 1000 steps on 2 cores. After 100 s two are done and two are half way (3000
+    # steps in 200 trial-seconds: 15 a trial-second). Left: 500 + 500 on the two cores, then the
+    # fifth's 1000 on the first free one: 1500 steps on one core, 100 s (the stage's rate would say 67).
+    now = [0.0]
+    monkeypatch.setattr(callbacks.time, "monotonic", lambda: now[0])
+    progress = callbacks.StageProgress("[blocks] train", every=1e9, log=lambda line: None)
+    trials = [_trial(t, "RUNNING", {}, {}) for t in "abcde"]
+    for t in trials[2:]:
+        t.status = "PENDING"
+    now[0] = 50.0
+    for t in trials[:2]:
+        progress.on_trial_result(1, trials, t, {STEPS_DONE: 1000, STEPS_TOTAL: 1000})
+        t.status = "TERMINATED"
+    for t in trials[2:4]:
+        t.status = "RUNNING"
+    now[0] = 100.0
+    for t in trials[2:4]:
+        progress.on_trial_result(1, trials, t, {STEPS_DONE: 500, STEPS_TOTAL: 1000})
+    assert progress.line(trials) == "[blocks] train: 2/5 trials done, 3.0k/5.0k env steps, 1m40s elapsed, ETA 1m40s"
+    for t in trials:
+        t.status = "TERMINATED"
+    assert progress.eta_seconds(trials) == 0.0
