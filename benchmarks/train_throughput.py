@@ -4,7 +4,8 @@ For each game (bandit with 2 symmetric contexts, blocks, Hanabi), in one run:
 - `ours_1`: the modular ego (lam 0.5) with the paper's hyperparameters against 4 scripted
   partners (Hanabi: its scripted population), one seed: what one trial of a lone seed gets;
 - `ours_3`: three seeds packed as replicas of one algorithm (how `train` runs an
-  experiment's seeds), counted in env steps of all three (each replica trains as alone);
+  experiment's seeds), counted in the moves of all three replicas' own game copies, as
+  training budgets count them (each replica trains as alone);
 - `rllib_default`: `PPOConfig()` defaults (2 env runners, 1 env each, 256x256 MLPs,
   4000-step batches, minibatch 128, 30 epochs) with one learning module per seat
   (RLlib's `ActionMaskingTorchRLModule`, since the observations carry a mask), and
@@ -48,6 +49,7 @@ from rllib_conv.partners.blocks import (  # noqa: E402
 from rllib_conv.training.algorithm import Replica, build_ppo_config  # noqa: E402
 from rllib_conv.training.ego_setup import resolve  # noqa: E402
 from rllib_conv.training.experiment import ExperimentConfig  # noqa: E402
+from rllib_conv.training.replica_steps import replica_env_steps  # noqa: E402
 
 
 def _blocks_four(tmp: Path) -> str:
@@ -82,17 +84,26 @@ def rllib_default(env: str, env_config: dict) -> PPOConfig:
     )
 
 
-def steps_per_second(config: PPOConfig, seconds: float, replicas: int = 1) -> tuple[float, int]:
-    """Train for at least `seconds` (whole iterations, after a warm-up one); return (env steps/s of all replicas, iterations)."""
+def steps_per_second(config: PPOConfig, seconds: float, replicas: int | None = None) -> tuple[float, int]:
+    """Train for at least `seconds` (whole iterations, after a warm-up one); return (env steps/s, iterations).
+
+    With `replicas`, the env steps are the moves every replica's own game copies made
+    (`replica_env_steps`, what training budgets count); without, RLlib's env steps.
+    """
+
+    def played(result: dict) -> int:
+        if replicas is None:
+            return result["env_runners"]["num_env_steps_sampled_lifetime"]
+        return sum(replica_env_steps(result, r) for r in range(replicas))
+
     algo = config.build_algo()
     try:
-        algo.train()
-        start, steps, iters = time.perf_counter(), 0, 0
+        before = played(algo.train())
+        start, iters = time.perf_counter(), 0
         while time.perf_counter() - start < seconds or iters < 1:
             result = algo.train()
-            steps += result["env_runners"]["num_env_steps_sampled"]
             iters += 1
-        return replicas * steps / (time.perf_counter() - start), iters
+        return (played(result) - before) / (time.perf_counter() - start), iters
     finally:
         algo.stop()
 
@@ -113,7 +124,7 @@ def main() -> None:
     try:
         for game in args.games:
             population, env_config = games[game]
-            one, n_one = steps_per_second(ours(population, 1), args.seconds)
+            one, n_one = steps_per_second(ours(population, 1), args.seconds, replicas=1)
             three, n_three = steps_per_second(ours(population, 3), args.seconds, replicas=3)
             default, n_default = steps_per_second(rllib_default(game, env_config), args.seconds)
             ceiling = adapter_steps_per_second(game, env_config, 20_000) / MOVES_PER_STEP[game]

@@ -59,7 +59,7 @@ from rllib_conv.training.ego_setup import EgoSetup, setup_for
 from rllib_conv.training.evaluate import ego_head_partner, load_module, player_return
 from rllib_conv.training.experiment import ExperimentConfig, trial_config
 from rllib_conv.training.head_pick import HeadPick, pick_head
-from rllib_conv.training.packs import cluster_cpus, packs, write_tables
+from rllib_conv.training.packs import cluster_cpus, packs, spread_over_cores, write_tables
 from rllib_conv.training.replica_export import copy_replica, replica_module
 from rllib_conv.training.replica_steps import replica_env_steps
 from rllib_conv.training.settings import MappingSettings
@@ -349,6 +349,7 @@ def run_adaptations(
             adapt_curve(cfg, pair["run"], pair["partner"])  # wrong game, missing weights: fail early
     cpus, total = cluster_cpus(address), sum(map(len, curves))
     jobs = [{"index": i, "config": raw, "curves": pack} for i, (raw, cfg, pairs) in enumerate(zip(raws, cfgs, curves)) for pack in pack_curves(cfg, pairs, cpus, total)]
+    jobs = spread_over_cores(jobs, "curves", cpus)
     spec: Any = raws[0] if len(raws) == 1 else {"experiments": names, "configs": raws}
     name = f"{ADAPT_PREFIX}{cfgs[0].name}" if len(raws) == 1 else spec_name(STAGE_PREFIX, spec)
     progress = StageProgress(label) if label else "lines"

@@ -229,7 +229,7 @@ def train_stage(
     todo = [left for job in jobs if (left := _unfinished(job))]
     if not todo:
         return []
-    todo = spread_over_cores(todo, REPLICA_SEEDS, cluster_cpus(address))
+    todo = spread_over_cores(todo, REPLICA_SEEDS, cluster_cpus(address), first_key="seed")
     name = spec_name(TRAIN_STAGE_PREFIX, {"experiments": names, "jobs": jobs})
     spec = {"experiments": names, "jobs": jobs}
     results = fit(EgoTrainable, spec, job_param_space(todo), name, storage, address, _checkpoints(first), StageProgress(label), loggers=loggers)

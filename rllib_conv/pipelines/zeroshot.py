@@ -42,7 +42,7 @@ from rllib_conv.training.checkpoints import last_checkpoint
 from rllib_conv.training.ego_setup import setup_for
 from rllib_conv.training.evaluate import ego_head_partner, player_return
 from rllib_conv.training.experiment import ExperimentConfig, trial_config
-from rllib_conv.training.packs import cluster_cpus, packs, write_tables
+from rllib_conv.training.packs import cluster_cpus, packs, spread_over_cores, write_tables
 from rllib_conv.training.replica_export import replica_module
 from rllib_conv.training.replica_steps import replica_env_steps
 from rllib_conv.training.settings import MappingSettings
@@ -233,6 +233,7 @@ def run_zeroshots(
 
     total = sum(map(len, runs))
     jobs = [{"index": i, "config": raw, "runs": pack} for i, (raw, cfg, rs) in enumerate(zip(raws, cfgs, runs)) for pack in packs(rs, key(i), cpus, cfg.max_pack, total)]
+    jobs = spread_over_cores(jobs, "runs", cpus)
     spec: Any = raws[0] if len(raws) == 1 else {"experiments": names, "configs": raws}
     name = f"{ZEROSHOT_PREFIX}{cfgs[0].name}" if len(raws) == 1 else spec_name(f"{ZEROSHOT_PREFIX}stage-", spec)
     progress = StageProgress(label) if label else "lines"

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import functools
 import json
 import math
 import time
@@ -50,7 +49,7 @@ class _ThrottledPrint(Callback):
     """Prints `text(trials)` at most every `every` seconds while results arrive, and whenever a trial finishes or fails."""
 
     every: float
-    log: Any  # where the text goes
+    log: Any  # where the text goes (None: print)
     _last_print: float
 
     def text(self, trials: list) -> str:
@@ -58,7 +57,13 @@ class _ThrottledPrint(Callback):
 
     def _print(self, trials: list) -> None:
         self._last_print = time.monotonic()
-        self.log(self.text(trials))
+        text = self.text(trials)
+        # `print` is looked up when used, not stored: Tune pickles its callbacks, and a stored
+        # builtin fails to pickle once something (a progress bar) has replaced builtins.print.
+        if self.log is None:
+            print(text, flush=True)
+        else:
+            self.log(text)
 
     def on_trial_result(self, iteration: int, trials: list, trial: Any, result: dict[str, Any], **info: Any) -> None:
         if time.monotonic() - self._last_print >= self.every:
@@ -82,7 +87,7 @@ class ProgressTable(_ThrottledPrint):
 
     def __init__(self, every: float = 30.0) -> None:
         self.every = every
-        self.log = functools.partial(print, flush=True)
+        self.log = None
         self._last_print = 0.0
 
     def table(self, trials: list) -> str:
@@ -143,7 +148,7 @@ class StageProgress(_ThrottledPrint):
     pack) counts from zero.
     """
 
-    def __init__(self, label: str, every: float = 30.0, log: Any = print) -> None:
+    def __init__(self, label: str, every: float = 30.0, log: Any = None) -> None:
         self.label, self.every, self.log = label, every, log
         self._start = time.monotonic()
         self._last_print = self._start

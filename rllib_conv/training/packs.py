@@ -3,7 +3,8 @@
 Units that can be replicas of one algorithm (the same `packing_key`) may share a trial;
 bigger packs pay the env-runner and learner overheads fewer times, but a stage needs at
 least as many trials as the cluster has CPUs, or cores idle. `packs` makes packs of at most
-`max_pack` units and of about `total / cpus` units, so a small stage still fills every core.
+`max_pack` units and of about `total / cpus` units, so a small stage still fills every core;
+`spread_over_cores` then cuts a stage's trials so none is left alone at the end.
 """
 
 from __future__ import annotations
@@ -41,37 +42,39 @@ def packs(units: list[T], key: Callable[[T], Hashable], cpus: int, max_pack: int
     return out
 
 
-def spread_over_cores(jobs: list[dict[str, Any]], seeds_key: str, cpus: int) -> list[dict[str, Any]]:
-    """`jobs` (each training the seeds under `seeds_key` as replicas), cut and ordered so that their seeds keep `cpus` cores busy.
+def spread_over_cores(jobs: list[dict[str, Any]], units_key: str, cpus: int, first_key: str | None = None) -> list[dict[str, Any]]:
+    """`jobs` (trials, each running the list of equal-cost units under `units_key` together), cut and ordered so they keep `cpus` cores busy.
 
-    Five jobs of 3 seeds on 2 cores run 2, 2, then 1 trial with a core idle: 9 seed-lengths
-    of wall time. Cut by McNaughton's wrap-around rule (fill each core to ceil(seeds / cpus)
+    Five jobs of 3 seeds on 2 cores run 2, 2, then 1 trial with a core idle: 9 unit-lengths
+    of wall time. Cut by McNaughton's wrap-around rule (fill each core to ceil(units / cpus)
     in job order, a job crossing the line split in two; at most `cpus - 1` splits) they run
-    as 3, 3, 3, 3, 2 and 1 seeds: 8. Tune starts trials in order as cores free up, so the
+    as 3, 3, 3, 3, 2 and 1 units: 8. Tune starts trials in order as cores free up, so the
     cut is kept only where that order ends sooner than the whole jobs, as given or longest
-    first; otherwise those are returned. A piece keeps its job's other keys, with `"seed"`
-    its own first seed.
+    first; otherwise those are returned. A piece keeps its job's other keys, with
+    `first_key` (if given) set to its own first unit.
     """
-    load = max(1, math.ceil(sum(len(job[seeds_key]) for job in jobs) / max(1, cpus)))
+    load = max(1, math.ceil(sum(len(job[units_key]) for job in jobs) / max(1, cpus)))
     pieces, room = [], load
     for job in jobs:
-        seeds = list(job[seeds_key])
-        while seeds:
-            take, seeds = seeds[:room], seeds[room:]
-            pieces.append(job if len(take) == len(job[seeds_key]) else {**job, "seed": take[0], seeds_key: take})
+        units = list(job[units_key])
+        while units:
+            take, units = units[:room], units[room:]
+            piece = {**job, units_key: take, **({first_key: take[0]} if first_key else {})}
+            pieces.append(job if len(take) == len(job[units_key]) else piece)
             room = room - len(take) or load
+
     def longest_first(some: list[dict[str, Any]]) -> list[dict[str, Any]]:
-        return sorted(some, key=lambda job: -len(job[seeds_key]))
+        return sorted(some, key=lambda job: -len(job[units_key]))
 
     candidates = [jobs, longest_first(jobs), longest_first(pieces)]
-    return min(candidates, key=lambda js: _wall(js, seeds_key, cpus))  # the first of the fastest: no cut unless it pays
+    return min(candidates, key=lambda js: _wall(js, units_key, cpus))  # the first of the fastest: no cut unless it pays
 
 
-def _wall(jobs: list[dict[str, Any]], seeds_key: str, cpus: int) -> int:
-    """Seed-lengths until `jobs`, started in order on the first free of `cpus` cores, are all done."""
+def _wall(jobs: list[dict[str, Any]], units_key: str, cpus: int) -> int:
+    """Unit-lengths until `jobs`, started in order on the first free of `cpus` cores, are all done."""
     cores = [0] * max(1, cpus)
     for job in jobs:
-        cores[cores.index(min(cores))] += len(job[seeds_key])
+        cores[cores.index(min(cores))] += len(job[units_key])
     return max(cores)
 
 
