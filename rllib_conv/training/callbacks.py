@@ -187,6 +187,9 @@ class StageProgress(_ThrottledPrint):
     def eta_seconds(self, trials: list) -> float | None:
         """Seconds until every trial is done, None before any rate is known."""
         running, waiting, _ = self._work(trials)
+        return self._eta(running, waiting)
+
+    def _eta(self, running: list[float], waiting: list[float]) -> float | None:
         if not running and not waiting:
             return 0.0
         if self._played <= 0 or self._busy <= 0:
@@ -201,7 +204,7 @@ class StageProgress(_ThrottledPrint):
         self._tick(trials)
         finished = sum(t.status == "TERMINATED" for t in trials)
         running, waiting, done = self._work(trials)
-        eta = self.eta_seconds(trials)
+        eta = self._eta(running, waiting)
         elapsed = time.monotonic() - self._start
         return (
             f"{self.label}: {finished}/{len(trials)} trials done, {_count(done)}/{_count(done + sum(running) + sum(waiting))} env steps, "
