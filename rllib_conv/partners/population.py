@@ -149,6 +149,17 @@ def names() -> list[str]:
     return list(_BUILTINS)
 
 
+def population_ref(name_or_path: str) -> str:
+    """`name_or_path` as configs store it: a built-in's name as is, an existing manifest's path made absolute.
+
+    Tune runs each trial in its own working folder, so a path relative to where a command
+    started would name nothing there.
+    """
+    if name_or_path in _BUILTINS or not Path(name_or_path).exists():
+        return name_or_path
+    return str(Path(name_or_path).resolve())
+
+
 def get(name_or_path: str | Path) -> Population:
     """Return the built-in population `name_or_path`, or load the manifest at that path."""
     if str(name_or_path) in _BUILTINS:

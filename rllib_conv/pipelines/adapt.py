@@ -348,7 +348,8 @@ def run_adaptations(
         for pair in pairs:
             adapt_curve(cfg, pair["run"], pair["partner"])  # wrong game, missing weights: fail early
     cpus, total = cluster_cpus(address), sum(map(len, curves))
-    jobs = [{"index": i, "config": raw, "curves": pack} for i, (raw, cfg, pairs) in enumerate(zip(raws, cfgs, curves)) for pack in pack_curves(cfg, pairs, cpus, total)]
+    # The validated config, not the raw one: its population paths are absolute (trials run in their own folders).
+    jobs = [{"index": i, "config": cfg.model_dump(mode="json", exclude_unset=True), "curves": pack} for i, (raw, cfg, pairs) in enumerate(zip(raws, cfgs, curves)) for pack in pack_curves(cfg, pairs, cpus, total)]
     jobs = spread_over_cores(jobs, "curves", cpus)
     spec: Any = raws[0] if len(raws) == 1 else {"experiments": names, "configs": raws}
     name = f"{ADAPT_PREFIX}{cfgs[0].name}" if len(raws) == 1 else spec_name(STAGE_PREFIX, spec)

@@ -232,7 +232,8 @@ def run_zeroshots(
         return lambda run: packing_key(setup_for(plans[(i, run)]["heads"], plans[(i, run)]["old"], plans[(i, run)]["old"].entries("test")))
 
     total = sum(map(len, runs))
-    jobs = [{"index": i, "config": raw, "runs": pack} for i, (raw, cfg, rs) in enumerate(zip(raws, cfgs, runs)) for pack in packs(rs, key(i), cpus, cfg.max_pack, total)]
+    # The validated config, not the raw one: its population paths are absolute (trials run in their own folders).
+    jobs = [{"index": i, "config": cfg.model_dump(mode="json", exclude_unset=True), "runs": pack} for i, (raw, cfg, rs) in enumerate(zip(raws, cfgs, runs)) for pack in packs(rs, key(i), cpus, cfg.max_pack, total)]
     jobs = spread_over_cores(jobs, "runs", cpus)
     spec: Any = raws[0] if len(raws) == 1 else {"experiments": names, "configs": raws}
     name = f"{ZEROSHOT_PREFIX}{cfgs[0].name}" if len(raws) == 1 else spec_name(f"{ZEROSHOT_PREFIX}stage-", spec)

@@ -24,6 +24,7 @@ from rllib_conv.training.settings import (
     MAMLSettings,
     MappingSettings,
     ModelSettings,
+    PopulationRef,
     PPOSettings,
     RunSettings,
 )
@@ -35,7 +36,7 @@ class ExperimentConfig(Strict):
     name: FolderName = "experiment"
     env: EnvName | None = None
     env_config: dict[str, Any] = Field(default_factory=dict)
-    population: str
+    population: PopulationRef
     method: MethodName = "modular"
     lam: float = Field(LearnerSettings.lam, ge=0.0)
     freeze: list[str] = Field(default_factory=list)

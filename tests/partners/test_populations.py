@@ -9,7 +9,7 @@ import pytest
 
 from rllib_conv import partners
 from rllib_conv.envs.blocks import RED, encode_observation
-from rllib_conv.partners.population import Population
+from rllib_conv.partners.population import Population, population_ref
 
 
 def test_builtin_populations_build_and_have_the_papers_sizes() -> None:
@@ -100,3 +100,12 @@ def test_save_is_atomic_and_leaves_no_temp_files(tmp_path) -> None:
     pop.save(tmp_path / "p.json")
     pop.save(tmp_path / "p.json")
     assert [p.name for p in tmp_path.iterdir()] == ["p.json"]
+
+
+def test_a_population_reference_keeps_names_and_makes_paths_absolute(tmp_path, monkeypatch) -> None:
+    partners.get("bandit-s1-hand").save(tmp_path / "pop" / "population.json")
+    monkeypatch.chdir(tmp_path)
+    assert population_ref("bandit-s1-hand") == "bandit-s1-hand"
+    assert population_ref("pop") == str((tmp_path / "pop").resolve())
+    assert population_ref("pop/population.json") == str((tmp_path / "pop" / "population.json").resolve())
+    assert population_ref("missing") == "missing"  # left for `partners.get` to name the problem

@@ -140,3 +140,16 @@ def test_a_train_stage_with_more_seeds_trains_the_new_seeds_only(ray_session, tm
     assert sorted(p.name for p in first.rglob("seed=*") if p.is_dir()) == ["seed=0", "seed=1"]
     assert {p: p.stat().st_mtime_ns for p in seed0.rglob("*") if p.is_file()} == before  # seed 0 was not trained again
     assert train_stage([{**raw, "seed": {"grid_search": [0, 1]}}], storage=tmp_path) == []
+
+
+def test_a_manifest_path_relative_to_the_working_folder_trains(ray_session, tmp_path, monkeypatch) -> None:
+    # Tune runs each trial in its own folder, where a relative path names nothing (a reproduce
+    # with its default relative --out failed this way on its self-play population).
+    partners.get("bandit-s1-hand").save(tmp_path / "pop" / "population.json")
+    monkeypatch.chdir(tmp_path)
+    raw = {**tiny_experiment("relative"), "population": "pop"}
+    assert train_stage([raw], storage="runs") == ["relative"]
+    (config,) = (tmp_path / "runs" / "relative").rglob(CONFIG_FILE)
+    assert yaml.safe_load(config.read_text())["population"] == str((tmp_path / "pop").resolve())
+    results = run({**raw, "name": "relative-run", "population": {"grid_search": ["pop", "bandit-s1-hand"]}}, storage="runs")
+    assert len(results) == 2 and not results.errors
