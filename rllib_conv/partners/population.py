@@ -26,7 +26,7 @@ from typing import Any, Callable, Literal
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from rllib_conv.common.config_files import describe
+from rllib_conv.common.config_files import GRID_KEY, describe, is_grid
 from rllib_conv.common.run_folders import POPULATION_FILE
 from rllib_conv.envs.registry import factory as env_factory
 from rllib_conv.partners.base import Partner
@@ -158,6 +158,14 @@ def population_ref(name_or_path: str) -> str:
     if name_or_path in _BUILTINS or not Path(name_or_path).exists():
         return name_or_path
     return str(Path(name_or_path).resolve())
+
+
+def with_absolute_paths(raw: dict[str, Any], key: str) -> dict[str, Any]:
+    """Config `raw` with its population `key` (a name or path, a grid of them, or absent) passed through `population_ref`."""
+    value = raw.get(key)
+    if value is None:
+        return raw
+    return {**raw, key: {GRID_KEY: [population_ref(v) for v in value[GRID_KEY]]} if is_grid(value) else population_ref(value)}
 
 
 def get(name_or_path: str | Path) -> Population:

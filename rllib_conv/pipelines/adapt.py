@@ -44,6 +44,7 @@ from rllib_conv.envs.defaults import ADAPT_DEFAULTS
 from rllib_conv.modules import partner_id
 from rllib_conv.modules.multi import AGG_HEAD_ID, TASK_ID, replica_id
 from rllib_conv.modules.stacked_multi import STACK_ID
+from rllib_conv.partners.population import with_absolute_paths
 from rllib_conv.pipelines.adapt_config import AdaptConfig
 from rllib_conv.training.algorithm import Replica, build_algorithm, packing_key
 from rllib_conv.training.callbacks import STEPS_DONE, STEPS_TOTAL, StageProgress
@@ -348,8 +349,8 @@ def run_adaptations(
         for pair in pairs:
             adapt_curve(cfg, pair["run"], pair["partner"])  # wrong game, missing weights: fail early
     cpus, total = cluster_cpus(address), sum(map(len, curves))
-    # The validated config, not the raw one: its population paths are absolute (trials run in their own folders).
-    jobs = [{"index": i, "config": cfg.model_dump(mode="json", exclude_unset=True), "curves": pack} for i, (raw, cfg, pairs) in enumerate(zip(raws, cfgs, curves)) for pack in pack_curves(cfg, pairs, cpus, total)]
+    # Manifest paths made absolute: Tune runs every trial in its own folder.
+    jobs = [{"index": i, "config": with_absolute_paths(raw, "population"), "curves": pack} for i, (raw, cfg, pairs) in enumerate(zip(raws, cfgs, curves)) for pack in pack_curves(cfg, pairs, cpus, total)]
     jobs = spread_over_cores(jobs, "curves", cpus)
     spec: Any = raws[0] if len(raws) == 1 else {"experiments": names, "configs": raws}
     name = f"{ADAPT_PREFIX}{cfgs[0].name}" if len(raws) == 1 else spec_name(STAGE_PREFIX, spec)

@@ -7,7 +7,7 @@ from typing import Any, Literal
 from pydantic import Field, PositiveInt, confloat, model_validator
 
 from rllib_conv.common.config_files import Strict
-from rllib_conv.training.settings import FolderName, PopulationRef
+from rllib_conv.training.settings import FolderName
 
 Fraction = confloat(gt=0.0, lt=1.0)
 
@@ -48,7 +48,7 @@ class AdaptConfig(Strict):
 
     name: FolderName = "adapt"
     runs: list[str]
-    population: PopulationRef | None = None
+    population: str | None = None
     split: Literal["train", "test"] = "test"
     partners: list[str] | None = None
     method: Literal["scratch"] | None = None

@@ -31,7 +31,7 @@ from rllib_conv.common.run_folders import EVAL_FILE, REPLICA_PREFIX, TRAIN_STAGE
 from rllib_conv.envs.oracles import has_oracle
 from rllib_conv.learners.marginal_learner import HEAD_L2_KEY, MARGINAL_REG_KEY
 from rllib_conv.modules.multi import AGG_HEAD_ID, TASK_ID, partner_id, replica_id
-from rllib_conv.partners.population import population_ref
+from rllib_conv.partners.population import with_absolute_paths
 from rllib_conv.training.algorithm import Replica, build_algorithm
 from rllib_conv.training.callbacks import STEPS_DONE, STEPS_TOTAL, StageProgress
 from rllib_conv.training.ego_setup import EgoSetup, resolve
@@ -175,7 +175,7 @@ def run(
     `resume` and `loggers`).
     """
     first = _checked(raw)[0]
-    return fit(EgoTrainable, raw, replica_param_space(_portable(raw)), first.name, storage, address, _checkpoints(first), progress, resume, loggers)
+    return fit(EgoTrainable, raw, replica_param_space(with_absolute_paths(raw, "population")), first.name, storage, address, _checkpoints(first), progress, resume, loggers)
 
 
 def _checked(raw: dict[str, Any]) -> list[ExperimentConfig]:
@@ -193,14 +193,9 @@ def _checkpoints(exp: ExperimentConfig) -> tune.CheckpointConfig:
 def training_jobs(raw: dict[str, Any], folder: Path) -> list[dict[str, Any]]:
     """The trials of experiment `raw` as stage jobs: one per point of its grids (its seeds as replicas),
     exporting its egos to `folder/point_<i>/seed=<s>/`."""
-    points = [spec for _, spec in generate_variants(replica_param_space(_portable(raw)))]
+    # Manifest paths made absolute: Tune runs every trial in its own folder.
+    points = [spec for _, spec in generate_variants(replica_param_space(with_absolute_paths(raw, "population")))]
     return [{**point, EXPORT_KEY: str(folder / f"point_{i}")} for i, point in enumerate(points)]
-
-
-def _portable(raw: dict[str, Any]) -> dict[str, Any]:
-    """`raw` with its population manifest paths (one, or a grid of them) made absolute: Tune runs every trial in its own folder."""
-    pop = raw["population"]
-    return {**raw, "population": {GRID_KEY: [population_ref(p) for p in pop[GRID_KEY]]} if is_grid(pop) else population_ref(pop)}
 
 
 def _finished(job: dict[str, Any]) -> bool:

@@ -35,6 +35,7 @@ from rllib_conv.modules.ego_stack import TASK_LOGITS_LAYER
 from rllib_conv.modules.mlp import mlp, seeded_generator
 from rllib_conv.modules.multi import TASK_ID, ego_id
 from rllib_conv.modules.stacked_multi import STACK_ID
+from rllib_conv.partners.population import with_absolute_paths
 from rllib_conv.pipelines.zeroshot_config import ZeroShotConfig
 from rllib_conv.training.algorithm import Replica, build_algorithm, packing_key
 from rllib_conv.training.callbacks import STEPS_DONE, STEPS_TOTAL, StageProgress
@@ -232,8 +233,8 @@ def run_zeroshots(
         return lambda run: packing_key(setup_for(plans[(i, run)]["heads"], plans[(i, run)]["old"], plans[(i, run)]["old"].entries("test")))
 
     total = sum(map(len, runs))
-    # The validated config, not the raw one: its population paths are absolute (trials run in their own folders).
-    jobs = [{"index": i, "config": cfg.model_dump(mode="json", exclude_unset=True), "runs": pack} for i, (raw, cfg, rs) in enumerate(zip(raws, cfgs, runs)) for pack in packs(rs, key(i), cpus, cfg.max_pack, total)]
+    # Manifest paths made absolute: Tune runs every trial in its own folder.
+    jobs = [{"index": i, "config": with_absolute_paths(raw, "new_population"), "runs": pack} for i, (raw, cfg, rs) in enumerate(zip(raws, cfgs, runs)) for pack in packs(rs, key(i), cpus, cfg.max_pack, total)]
     jobs = spread_over_cores(jobs, "runs", cpus)
     spec: Any = raws[0] if len(raws) == 1 else {"experiments": names, "configs": raws}
     name = f"{ZEROSHOT_PREFIX}{cfgs[0].name}" if len(raws) == 1 else spec_name(f"{ZEROSHOT_PREFIX}stage-", spec)

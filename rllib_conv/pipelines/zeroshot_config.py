@@ -5,7 +5,7 @@ from __future__ import annotations
 from pydantic import NonNegativeFloat, PositiveInt
 
 from rllib_conv.common.config_files import Strict
-from rllib_conv.training.settings import EntropyCoeff, FolderName, PopulationRef
+from rllib_conv.training.settings import EntropyCoeff, FolderName
 
 
 class ZeroShotConfig(Strict):
@@ -26,7 +26,7 @@ class ZeroShotConfig(Strict):
 
     name: FolderName = "zeroshot"
     runs: list[str]
-    new_population: PopulationRef | None = None
+    new_population: str | None = None
     head_steps: PositiveInt | None = None
     task_steps: PositiveInt | None = None
     reset_task_logits: bool = True

@@ -24,7 +24,6 @@ from rllib_conv.training.settings import (
     MAMLSettings,
     MappingSettings,
     ModelSettings,
-    PopulationRef,
     PPOSettings,
     RunSettings,
 )
@@ -36,7 +35,7 @@ class ExperimentConfig(Strict):
     name: FolderName = "experiment"
     env: EnvName | None = None
     env_config: dict[str, Any] = Field(default_factory=dict)
-    population: PopulationRef
+    population: str
     method: MethodName = "modular"
     lam: float = Field(LearnerSettings.lam, ge=0.0)
     freeze: list[str] = Field(default_factory=list)

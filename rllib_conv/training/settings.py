@@ -15,7 +15,6 @@ from pydantic import AfterValidator, Field, NonNegativeFloat, NonNegativeInt, Po
 from rllib_conv.common.config_files import Strict
 from rllib_conv.envs.registry import factory as env_factory
 from rllib_conv.learners.settings import LearnerSettings
-from rllib_conv.partners.population import population_ref
 
 
 def _folder_name(v: str) -> str:
@@ -37,8 +36,6 @@ def _schedule_starts_at_zero(v: Any) -> Any:
 
 FolderName = Annotated[str, AfterValidator(_folder_name)]
 EnvName = Annotated[str, AfterValidator(_registered_env)]
-# A built-in population's name or a manifest's path (made absolute: trials run in their own folders).
-PopulationRef = Annotated[str, AfterValidator(population_ref)]
 # A constant, or a piecewise-linear schedule [[env_step, value], ...] starting at step 0.
 EntropyCoeff = Annotated[NonNegativeFloat | list[tuple[NonNegativeInt, NonNegativeFloat]], AfterValidator(_schedule_starts_at_zero)]
 

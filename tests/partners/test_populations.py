@@ -9,7 +9,7 @@ import pytest
 
 from rllib_conv import partners
 from rllib_conv.envs.blocks import RED, encode_observation
-from rllib_conv.partners.population import Population, population_ref
+from rllib_conv.partners.population import Population, population_ref, with_absolute_paths
 
 
 def test_builtin_populations_build_and_have_the_papers_sizes() -> None:
@@ -109,3 +109,7 @@ def test_a_population_reference_keeps_names_and_makes_paths_absolute(tmp_path, m
     assert population_ref("pop") == str((tmp_path / "pop").resolve())
     assert population_ref("pop/population.json") == str((tmp_path / "pop" / "population.json").resolve())
     assert population_ref("missing") == "missing"  # left for `partners.get` to name the problem
+    pop = str((tmp_path / "pop").resolve())
+    assert with_absolute_paths({"population": {"grid_search": ["pop", "blocks-perm"]}}, "population") == {"population": {"grid_search": [pop, "blocks-perm"]}}
+    assert with_absolute_paths({"new_population": "pop", "seed": 1}, "new_population") == {"new_population": pop, "seed": 1}
+    assert with_absolute_paths({"seed": 1}, "population") == {"seed": 1}
