@@ -150,7 +150,7 @@ def names() -> list[str]:
 
 
 def population_ref(name_or_path: str) -> str:
-    """`name_or_path` as configs store it: a built-in's name as is, an existing manifest's path made absolute.
+    """`name_or_path` as the stages hand it to their trials: a built-in's name as is, an existing manifest's path made absolute.
 
     Tune runs each trial in its own working folder, so a path relative to where a command
     started would name nothing there.
