@@ -1,12 +1,12 @@
 """Wall time of fixed `reproduce` slices, by the code before the speed work (a git worktree of its commit) and now.
 
-    OMP_NUM_THREADS=1 python benchmarks/reproduce_walltime.py [--old-commit 63f6b75] [--slices bandit blocks] [--work DIR]
+    OMP_NUM_THREADS=1 python benchmarks/reproduce_walltime.py [--old-commit 63f6b75] [--slices bandit blocks] [--work DIR] [--name NAME]
     python benchmarks/reproduce_walltime.py --measured reproduce/bandit --old-summary benchmarks/results/reproduce_bandit_extended.json
 
 Each slice runs from an empty folder, old code then new, one after the other on the same
 machine (it is shared and noisy: compare the ratio, not the seconds). Printed and written
-to `benchmarks/results/reproduce_walltime.json` (slices not run this time are kept from the
-file, each row with the date it was measured): per slice the wall time of each, the
+to `benchmarks/results/<NAME>.json` (default `reproduce_walltime`; slices not run this time are kept from the
+file, each row with the date it was measured; another `--old-commit` deserves another name): per slice the wall time of each, the
 ratio, the stage times, and for the new code where each stage's core-seconds went (trial
 set-up, RLlib iterations, evaluations, and what is left of cores x wall: Tune's overhead
 and idle cores), read from the `time/*` results every trial reports.
@@ -56,9 +56,9 @@ def worktree(commit: str, work: Path) -> Path:
     return path
 
 
-def kept_slices(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    """The slices of the committed results file that this run did not re-run (each keeps the date it was measured)."""
-    path = RESULTS / "reproduce_walltime.json"
+def kept_slices(rows: list[dict[str, Any]], name: str) -> list[dict[str, Any]]:
+    """The slices of the committed results file `name` that this run did not re-run (each keeps the date it was measured)."""
+    path = RESULTS / f"{name}.json"
     if not path.is_file():
         return []
     earlier = json.loads(path.read_text())
@@ -131,6 +131,7 @@ def main() -> None:
     p.add_argument("--work", type=Path, default=None, help="where the old worktree and the slices' folders go (default: a temp dir)")
     p.add_argument("--measured", type=Path, help="run nothing: a reproduce game folder the new code already ran in full")
     p.add_argument("--old-summary", type=Path, help="with --measured: the old code's reproduce_summary JSON (its stage times)")
+    p.add_argument("--name", default="reproduce_walltime", help="the results file, benchmarks/results/<NAME>.json")
     args = p.parse_args()
     cores = os.cpu_count() or 1
     if args.measured or args.old_summary:
@@ -162,7 +163,7 @@ def main() -> None:
         print(f"{name}: old {before['wall_s']:.0f} s, new {after['wall_s']:.0f} s, {before['wall_s'] / after['wall_s']:.1f}x faster", flush=True)
     print()
     _print_rows(rows)
-    path = write_result("reproduce_walltime", {"old_commit": args.old_commit, "cores": cores, "slices": kept_slices(rows) + rows})
+    path = write_result(args.name, {"old_commit": args.old_commit, "cores": cores, "slices": kept_slices(rows, args.name) + rows})
     print(f"wrote {path}")
     print(f"machine: {machine()['cpu']}, {cores} cores")
 

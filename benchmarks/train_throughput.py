@@ -6,6 +6,11 @@ For each game (bandit with 2 symmetric contexts, blocks, Hanabi), in one run:
 - `ours_3`: three seeds packed as replicas of one algorithm (how `train` runs an
   experiment's seeds), counted in the moves of all three replicas' own game copies, as
   training budgets count them (each replica trains as alone);
+- `ours_3_episodes`: the same through RLlib's episode objects (`run.batched_sampling: false`);
+  it differs from `ours_3` only on parallel games (the bandit), which `BatchedEnvRunner`
+  samples without them (same batches, same weights);
+- `ours_10` (bandit only): ten seeds packed, as a 10-seed experiment's trial holds them
+  when nothing else runs beside it;
 - `rllib_default`: `PPOConfig()` defaults (2 env runners, 1 env each, 256x256 MLPs,
   4000-step batches, minibatch 128, 30 epochs) with one learning module per seat
   (RLlib's `ActionMaskingTorchRLModule`, since the observations carry a mask), and
@@ -61,9 +66,10 @@ def _blocks_four(tmp: Path) -> str:
     return str(pop.save(tmp / "blocks-perm4.json"))
 
 
-def ours(population: str, seeds: int) -> PPOConfig:
+def ours(population: str, seeds: int, batched: bool = True) -> PPOConfig:
     """The modular ego's config (paper hyperparameters) for `population`, `seeds` seeds packed as replicas."""
-    return build_ppo_config([Replica(resolve(ExperimentConfig(population=population, lam=0.5, seed=s))) for s in range(seeds)])
+    run = {"batched_sampling": batched}
+    return build_ppo_config([Replica(resolve(ExperimentConfig(population=population, lam=0.5, seed=s, run=run))) for s in range(seeds)])
 
 
 def rllib_default(env: str, env_config: dict) -> PPOConfig:
@@ -126,6 +132,8 @@ def main() -> None:
             population, env_config = games[game]
             one, n_one = steps_per_second(ours(population, 1), args.seconds, replicas=1)
             three, n_three = steps_per_second(ours(population, 3), args.seconds, replicas=3)
+            episodes, n_episodes = steps_per_second(ours(population, 3, batched=False), args.seconds, replicas=3)
+            ten, n_ten = steps_per_second(ours(population, 10), args.seconds, replicas=10) if game == "bandit" else (None, 0)
             default, n_default = steps_per_second(rllib_default(game, env_config), args.seconds)
             ceiling = adapter_steps_per_second(game, env_config, 20_000) / MOVES_PER_STEP[game]
             rows.append(
@@ -133,12 +141,15 @@ def main() -> None:
                     "env": game,
                     "ours_1": one,
                     "ours_3": three,
+                    "ours_3_episodes": episodes,
+                    "ours_10": ten,
                     "rllib_default": default,
                     "env_ceiling": ceiling,
                     "target": TARGETS[game],
                     "ours_3/default": three / default,
+                    "ours_3/ours_3_episodes": three / episodes,
                     "ours_3/ceiling": three / ceiling,
-                    "iterations": {"ours_1": n_one, "ours_3": n_three, "rllib_default": n_default},
+                    "iterations": {"ours_1": n_one, "ours_3": n_three, "ours_3_episodes": n_episodes, "ours_10": n_ten, "rllib_default": n_default},
                 }
             )
             print(pd.DataFrame(rows).drop(columns="iterations").to_string(index=False, float_format="{:.2f}".format), flush=True)

@@ -56,6 +56,7 @@ from rllib_conv.learners.drop_bootstrap_rows import DropBootstrapRows
 from rllib_conv.learners.fused_step import FusedAdamStep, clip_segments
 from rllib_conv.learners.minibatches import CyclicMinibatchPlan, ModulePermuters, global_permute
 from rllib_conv.learners.ppo_loss import PPOLossTerms, ppo_loss
+from rllib_conv.learners.rollout import Rollout, rollout_train_batch
 from rllib_conv.learners.settings import LearnerSettings
 from rllib_conv.modules.multi import TASK_ID, replica_id
 from rllib_conv.modules.stacked_multi import STACK_ID, STACKED, HeadView, StackedEgoMultiRLModule, StackedOutput
@@ -225,6 +226,16 @@ class MarginalPPOLearner(PPOTorchLearner):
         return losses
 
     # --- the learner's own minibatch loop ---------------------------------------------------------
+
+    def _make_batch_if_necessary(self, training_data: TrainingData) -> Any:
+        """The train batch: from `Rollout`s (the batched sampler's) with RLlib's arithmetic, else RLlib's learner connector."""
+        episodes = training_data.episodes
+        if not episodes or not any(isinstance(e, Rollout) for e in episodes):
+            return super()._make_batch_if_necessary(training_data)
+        if not all(isinstance(e, Rollout) for e in episodes):
+            raise TypeError("a train batch mixes Rollouts and RLlib episodes: every env runner of an algorithm must sample the same way")
+        return rollout_train_batch(episodes, self.module, self.config.gamma, self.config.lambda_)
+
 
     def update(
         self,

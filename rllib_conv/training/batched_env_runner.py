@@ -1,0 +1,229 @@
+"""`BatchedEnvRunner`: RLlib's sampling loop for packed egos on parallel games, writing a `Rollout` instead of episodes.
+
+On the bandit most of an iteration's time went to RLlib's episode objects, not to the game or
+the networks: building a `MultiAgentEpisode` (with its per-agent `SingleAgentEpisode`s and
+lookback buffers) for every one-step game, running the env-to-module connectors over them
+every step, and the learner connector reading them back (`docs/speed.md`). This runner plays
+the same loop as `MultiAgentEnvRunner._sample`, step for step:
+
+- each iteration one forward pass (`forward_exploration`) over the observations of every
+  agent still to act, each module's rows in sub-environment order (the order RLlib's
+  connectors batch them in, so every replica draws the same actions from its generator);
+- then every sub-environment steps, except one whose episode ended in the previous
+  iteration, which is reset instead (gymnasium's next-step autoreset, as RLlib's vector env
+  does it); a new episode asks the policy mapping for its agents' modules in that order;
+- it stops once it has played `num_timesteps` env steps; episodes still running are cut
+  into chunks and continue in the next call;
+
+and hands the learner each agent's moves as a `Rollout` segment, in the order RLlib's
+learner connector would read them (done episodes as they ended, then the running chunks).
+`MarginalPPOLearner` makes the train batch from it with RLlib's own GAE arithmetic, so the
+batch equals the episode path's row for row and training is unchanged
+(`tests/training/test_batched_env_runner.py`). Metrics are counted as `LeanEnvRunner` counts them.
+
+It samples this way when every sub-environment is a `ReplicatedGame` of a parallel game and
+the module is a `StackedEgoMultiRLModule` (whose heads and fixed partners return their
+actions); for turn-based games, other modules, evaluation-style calls (`num_episodes`,
+`explore=False`, random actions) or `restart_failed_sub_environments` it is RLlib's
+runner. Switching between the two resets every sub-environment (episodes in flight are dropped).
+"""
+
+from __future__ import annotations
+
+import time
+import uuid
+from collections import defaultdict
+from typing import Any
+
+import numpy as np
+import torch
+from ray.rllib.core.columns import Columns
+from ray.rllib.core.rl_module.apis.value_function_api import ValueFunctionAPI
+from ray.rllib.utils.metrics import SAMPLE_TIMER
+
+from rllib_conv.envs.replicated_game import ReplicatedGame
+from rllib_conv.learners.rollout import MASK_KEY, OBS_KEY, Rollout
+from rllib_conv.modules.stacked_multi import StackedEgoMultiRLModule
+from rllib_conv.training.lean_env_runner import LeanEnvRunner
+
+
+class RunningEpisode:
+    """One sub-environment's episode: its agents' modules, their moves in the current chunk, totals for metrics.
+
+    Offers what the policy mapping and `LeanEnvRunner`'s counters read of an RLlib episode (`id_`, `is_done`, `module_for`).
+    """
+
+    def __init__(self, obs: dict[str, dict], mapping: Any) -> None:
+        self.id_ = uuid.uuid4().hex
+        self.is_done = False
+        self.modules: dict[str, str] = {}
+        for aid in obs:  # RLlib's `add_env_reset` maps the agents in this order
+            self.modules[aid] = mapping(aid, self)
+        self.obs = {aid: [o] for aid, o in obs.items()}
+        self.actions: dict[str, list] = {aid: [] for aid in obs}
+        self.logp: dict[str, list] = {aid: [] for aid in obs}
+        self.rewards: dict[str, list] = {aid: [] for aid in obs}
+        self.ended: dict[str, tuple[bool, bool]] = {}  # agent -> (terminated, truncated), once it is out
+        self.chunk_steps = 0
+        self.length = 0
+        self.returns: dict[str, float] = defaultdict(float)
+        self.moves: dict[str, int] = defaultdict(int)
+        self.start = time.perf_counter()
+
+    def module_for(self, agent_id: str) -> str:
+        return self.modules[agent_id]
+
+    def to_act(self) -> list[str]:
+        """The agents that observed the last step and are still playing."""
+        return [aid for aid in self.obs if aid not in self.ended]
+
+    def record(self, actions: dict, logp: dict, obs: dict, rewards: dict, terms: dict, truncs: dict) -> None:
+        """Add one env step: the agents that moved get their reward and next observation."""
+        for aid, action in actions.items():
+            if aid not in obs:
+                raise ValueError(f"agent {aid!r} moved but got no next observation; batched sampling needs a parallel game")
+            reward = float(rewards.get(aid, 0.0))
+            self.actions[aid].append(action)
+            self.logp[aid].append(logp.get(aid, 0.0))
+            self.rewards[aid].append(reward)
+            self.returns[aid] += reward
+            self.moves[aid] += 1
+        for aid, o in obs.items():
+            if aid not in self.modules:
+                raise ValueError(f"agent {aid!r} joined an episode after its start; batched sampling needs a fixed set of agents")
+            self.obs[aid].append(o)
+        # Who is out, by `MultiAgentEpisode.add_env_step`'s rule: an episode whose agents are all
+        # out (in any mix) counts as terminated, and an episode-wide flag reaches every agent.
+        all_term, all_trunc = bool(terms.get("__all__")), bool(truncs.get("__all__"))
+        out_now = {a for flags in (terms, truncs) for a, v in flags.items() if v and a != "__all__"}
+        term = all_term or all(a in self.ended or a in out_now for a in self.modules)
+        touched = (set(obs) | set(actions) | set(rewards) | set(terms) | set(truncs) | (set(self.modules) if all_term or all_trunc else set())) - {"__all__"}
+        for aid in touched - set(self.ended):
+            t, tr = bool(terms.get(aid)) or term, bool(truncs.get(aid)) or all_trunc
+            if t or tr:
+                self.ended[aid] = (t, tr)
+        self.chunk_steps += 1
+        self.length += 1
+        self.is_done = term or all_trunc
+
+    def emit(self, rollout: Rollout, learning: set[str]) -> None:
+        """Append each learning agent's moves of this chunk to `rollout`, then start the next chunk from the last observations."""
+        for aid, mid in self.modules.items():
+            if self.actions[aid] and mid in learning:
+                terminated, truncated = self.ended.get(aid, (False, False))
+                rollout.rows(mid).add(self.obs[aid], self.actions[aid], self.logp[aid], self.rewards[aid], terminated, truncated)
+            self.obs[aid] = self.obs[aid][-1:]
+            self.actions[aid], self.logp[aid], self.rewards[aid] = [], [], []
+        self.chunk_steps = 0
+
+
+def _numpy(x: Any) -> np.ndarray:
+    return x.detach().cpu().numpy() if isinstance(x, torch.Tensor) else np.asarray(x)
+
+
+class BatchedEnvRunner(LeanEnvRunner):
+    """A `LeanEnvRunner` that samples packed egos on parallel games without RLlib's episode objects (see the module docstring)."""
+
+    def _batched(self) -> bool:
+        """Whether this runner's envs and module can be sampled here (decided once: they never change)."""
+        cached = self.__dict__.get("_can_batch")
+        if cached is None:
+            games = [env.unwrapped for env in self.env.envs] if self.env is not None else []
+            cached = self.__dict__["_can_batch"] = (
+                bool(games)
+                and all(isinstance(g, ReplicatedGame) and not any(c.is_aec for c in g.copies) for g in games)
+                and isinstance(self.module, StackedEgoMultiRLModule)
+                and not self.config.restart_failed_sub_environments
+                and self.config.batch_mode == "truncate_episodes"
+            )
+        return cached
+
+    def sample(self, *, num_timesteps: int | None = None, num_episodes: int | None = None, explore: bool | None = None, random_actions: bool = False, force_reset: bool = False) -> list:
+        explore = self.config.explore if explore is None else explore
+        lanes = self.__dict__.get("_lanes")
+        if num_episodes is not None or random_actions or not explore or not self._batched():
+            self.__dict__["_lanes"] = None
+            reset = force_reset or lanes is not None  # the envs are mid-episode for RLlib's own bookkeeping
+            return super().sample(num_timesteps=num_timesteps, num_episodes=num_episodes, explore=explore, random_actions=random_actions, force_reset=reset)
+        if num_timesteps is None:
+            num_timesteps = self.config.get_rollout_fragment_length(self.worker_index) * self.num_envs
+        with self.metrics.log_time(SAMPLE_TIMER):
+            return [self._sample_rollout(num_timesteps, force_reset or lanes is None)]
+
+    def _learning(self) -> set[str]:
+        """The modules whose rows the learner needs (those with values); fixed partners' are not kept."""
+        return {mid for mid, m in self.module._rl_modules.items() if isinstance(m, ValueFunctionAPI)}
+
+    def _sample_rollout(self, num_timesteps: int, reset: bool) -> Rollout:
+        mapping = self.config.policy_mapping_fn
+        learning = self._learning()
+        rollout = Rollout()
+        lanes: list[RunningEpisode | None]
+        if reset or self._needs_initial_reset:
+            obs, _ = self._try_env_reset(seed=self._seed if self._needs_initial_reset else None)
+            self._needs_initial_reset = False  # only the first reset is seeded (RLlib's `_reset_envs_and_episodes`)
+            lanes = [RunningEpisode(obs[i], mapping) for i in range(self.num_envs)]
+        else:
+            lanes = self.__dict__["_lanes"]
+        env_ts = 0
+        while env_ts < num_timesteps:
+            actions, logp = self._act(lanes)
+            for i, episode in enumerate(lanes):
+                env = self.env.envs[i]
+                if episode is None:  # ended in the last iteration: reset now, as RLlib's vector env does
+                    obs, _ = env.reset()
+                    lanes[i] = RunningEpisode(obs, mapping)
+                    continue
+                obs, rewards, terms, truncs, _ = env.step(actions[i])
+                episode.record(actions[i], logp[i], obs, rewards, terms, truncs)
+                env_ts += self._increase_sampled_metrics(1, obs, episode)
+                rollout.num_agent_steps += len(obs)
+                if episode.is_done:
+                    episode.emit(rollout, learning)
+                    self._log_episode_metrics(
+                        episode.length,
+                        sum(episode.returns.values()),
+                        time.perf_counter() - episode.start,
+                        {str(a): r for a, r in episode.returns.items()},
+                        _module_returns(episode),
+                        {str(a): n for a, n in episode.moves.items()},
+                    )
+                    lanes[i] = None
+        for episode in lanes:  # running episodes go out as chunks and continue next call
+            if episode is not None and episode.chunk_steps:
+                episode.emit(rollout, learning)
+        self.__dict__["_lanes"] = lanes
+        rollout.num_env_steps = env_ts
+        return rollout
+
+    def _act(self, lanes: list[RunningEpisode | None]) -> tuple[list[dict], list[dict]]:
+        """One forward pass for every agent to act, rows per module in lane order; actions and log-probabilities per lane."""
+        rows: dict[str, list[tuple[int, str]]] = {}
+        for i, episode in enumerate(lanes):
+            if episode is not None:
+                for aid in episode.to_act():
+                    rows.setdefault(episode.modules[aid], []).append((i, aid))
+        actions: list[dict] = [{} for _ in lanes]
+        logp: list[dict] = [{} for _ in lanes]
+        if not rows:
+            return actions, logp
+        batch = {}
+        for mid, where in rows.items():
+            last = [lanes[i].obs[aid][-1] for i, aid in where]
+            batch[mid] = {Columns.OBS: {key: torch.from_numpy(np.stack([o[key] for o in last])) for key in (OBS_KEY, MASK_KEY)}}
+        out = self.module.forward_exploration(batch)
+        for mid, where in rows.items():
+            acts = _numpy(out[mid][Columns.ACTIONS])
+            lps = _numpy(out[mid][Columns.ACTION_LOGP]) if Columns.ACTION_LOGP in out[mid] else None
+            for j, (i, aid) in enumerate(where):
+                actions[i][aid] = acts[j]
+                if lps is not None:
+                    logp[i][aid] = lps[j]
+        return actions, logp
+
+
+def _module_returns(episode: RunningEpisode) -> dict[str, float]:
+    returns: dict[str, float] = defaultdict(float)
+    for aid, r in episode.returns.items():
+        returns[episode.modules[aid]] += r
+    return dict(returns)
