@@ -1,31 +1,34 @@
-"""`BatchedEnvRunner`: RLlib's sampling loop for packed egos on parallel games, writing a `Rollout` instead of episodes.
+"""`BatchedEnvRunner`: RLlib's sampling loop for packed egos, writing a `Rollout` instead of episode objects.
 
-On the bandit most of an iteration's time went to RLlib's episode objects, not to the game or
-the networks: building a `MultiAgentEpisode` (with its per-agent `SingleAgentEpisode`s and
-lookback buffers) for every one-step game, running the env-to-module connectors over them
-every step, and the learner connector reading them back (`docs/speed.md`). This runner plays
-the same loop as `MultiAgentEnvRunner._sample`, step for step:
+Once the learner's minibatch loop was our own, most of an iteration on our small games went
+to RLlib's episode objects, not to the game or the networks: a `MultiAgentEpisode` (with its
+per-agent `SingleAgentEpisode`s and lookback buffers) for every game, env-to-module connectors
+over them at every step, and the learner connector reading them back (`docs/speed.md`). This
+runner plays the same loop as `MultiAgentEnvRunner._sample`, step for step:
 
 - each iteration one forward pass (`forward_exploration`) over the observations of every
-  agent still to act, each module's rows in sub-environment order (the order RLlib's
-  connectors batch them in, so every replica draws the same actions from its generator);
+  agent to act, each module's rows in sub-environment order (the order RLlib's connectors
+  batch them in, so every replica draws the same actions from its generator);
 - then every sub-environment steps, except one whose episode ended in the previous
   iteration, which is reset instead (gymnasium's next-step autoreset, as RLlib's vector env
-  does it); a new episode asks the policy mapping for its agents' modules in that order;
+  does it); a new agent asks the policy mapping for its module when it first observes;
+- each agent's rows follow `MultiAgentEpisode.add_env_step`'s rules (`RunningEpisode`): in
+  turn-based games a move waits for the mover's next observation;
 - it stops once it has played `num_timesteps` env steps; episodes still running are cut
-  into chunks and continue in the next call;
+  into chunks and continue in the next call, a waiting move with them;
 
-and hands the learner each agent's moves as a `Rollout` segment, in the order RLlib's
-learner connector would read them (done episodes as they ended, then the running chunks).
-`MarginalPPOLearner` makes the train batch from it with RLlib's own GAE arithmetic, so the
-batch equals the episode path's row for row and training is unchanged
-(`tests/training/test_batched_env_runner.py`). Metrics are counted as `LeanEnvRunner` counts them.
+and hands the learner each agent's moves as `Rollout` segments, in the order RLlib's learner
+connector would read them (done episodes as they ended, then the running chunks).
+`MarginalPPOLearner` makes the train batch from them with RLlib's own GAE arithmetic, so the
+batch equals the episode path's row for row and training is unchanged on the bandit, blocks
+and Hanabi (`tests/training/test_batched_env_runner.py`). Metrics are counted as
+`LeanEnvRunner` counts them.
 
-It samples this way when every sub-environment is a `ReplicatedGame` of a parallel game and
-the module is a `StackedEgoMultiRLModule` (whose heads and fixed partners return their
-actions); for turn-based games, other modules, evaluation-style calls (`num_episodes`,
-`explore=False`, random actions) or `restart_failed_sub_environments` it is RLlib's
-runner. Switching between the two resets every sub-environment (episodes in flight are dropped).
+It samples this way when every sub-environment is a `ReplicatedGame` and the module is a
+`StackedEgoMultiRLModule` (whose heads and fixed partners return their actions); for other
+modules (self-play pairs), evaluation-style calls (`num_episodes`, `explore=False`, random
+actions) or `restart_failed_sub_environments` it is RLlib's runner. Switching between the
+two resets every sub-environment (episodes in flight are dropped).
 """
 
 from __future__ import annotations
@@ -50,64 +53,111 @@ from rllib_conv.training.lean_env_runner import LeanEnvRunner
 class RunningEpisode:
     """One sub-environment's episode: its agents' modules, their moves in the current chunk, totals for metrics.
 
-    Offers what the policy mapping and `LeanEnvRunner`'s counters read of an RLlib episode (`id_`, `is_done`, `module_for`).
+    `record` follows `MultiAgentEpisode.add_env_step`'s rules, so each agent's rows are the ones
+    RLlib's episode would hold: an agent joins when it first observes; a move waits ("hangs")
+    until the mover observes again (turn-based games), and takes the rewards it got meanwhile;
+    an agent that ends without a last observation ends on its previous one; an episode whose
+    agents are all out, in any mix, counts as terminated, and an episode-wide flag reaches every
+    agent. Offers what the policy mapping and `LeanEnvRunner`'s counters read of an RLlib episode
+    (`id_`, `is_done`, `module_for`).
     """
 
     def __init__(self, obs: dict[str, dict], mapping: Any) -> None:
         self.id_ = uuid.uuid4().hex
         self.is_done = False
+        self.mapping = mapping
         self.modules: dict[str, str] = {}
-        for aid in obs:  # RLlib's `add_env_reset` maps the agents in this order
-            self.modules[aid] = mapping(aid, self)
-        self.obs = {aid: [o] for aid, o in obs.items()}
-        self.actions: dict[str, list] = {aid: [] for aid in obs}
-        self.logp: dict[str, list] = {aid: [] for aid in obs}
-        self.rewards: dict[str, list] = {aid: [] for aid in obs}
+        self.obs: dict[str, list] = {}
+        self.actions: dict[str, list] = {}
+        self.logp: dict[str, list] = {}
+        self.rewards: dict[str, list] = {}
+        self.hanging: dict[str, tuple[Any, float]] = {}  # agent -> (move, log-probability) awaiting its next observation
+        self.hanging_reward: dict[str, float] = defaultdict(float)  # what a hanging move has earned so far
         self.ended: dict[str, tuple[bool, bool]] = {}  # agent -> (terminated, truncated), once it is out
+        self.observed: list[str] = []  # who observed the last step
         self.chunk_steps = 0
         self.length = 0
         self.returns: dict[str, float] = defaultdict(float)
         self.moves: dict[str, int] = defaultdict(int)
         self.start = time.perf_counter()
+        for aid, o in obs.items():  # RLlib's `add_env_reset` maps the agents in this order
+            self._join(aid, o)
+        self.observed = list(obs)
 
     def module_for(self, agent_id: str) -> str:
         return self.modules[agent_id]
 
     def to_act(self) -> list[str]:
         """The agents that observed the last step and are still playing."""
-        return [aid for aid in self.obs if aid not in self.ended]
+        return [aid for aid in self.observed if aid not in self.ended]
+
+    def _join(self, aid: str, o: dict) -> None:
+        self.modules[aid] = self.mapping(aid, self)
+        self.obs[aid], self.actions[aid], self.logp[aid], self.rewards[aid] = [o], [], [], []
+
+    def _step(self, aid: str, o: dict, action: Any, logp: float, reward: float) -> None:
+        self.obs[aid].append(o)
+        self.actions[aid].append(action)
+        self.logp[aid].append(logp)
+        self.rewards[aid].append(reward)
+        self.returns[aid] += reward
+        self.moves[aid] += 1
 
     def record(self, actions: dict, logp: dict, obs: dict, rewards: dict, terms: dict, truncs: dict) -> None:
-        """Add one env step: the agents that moved get their reward and next observation."""
-        for aid, action in actions.items():
-            if aid not in obs:
-                raise ValueError(f"agent {aid!r} moved but got no next observation; batched sampling needs a parallel game")
-            reward = float(rewards.get(aid, 0.0))
-            self.actions[aid].append(action)
-            self.logp[aid].append(logp.get(aid, 0.0))
-            self.rewards[aid].append(reward)
-            self.returns[aid] += reward
-            self.moves[aid] += 1
-        for aid, o in obs.items():
-            if aid not in self.modules:
-                raise ValueError(f"agent {aid!r} joined an episode after its start; batched sampling needs a fixed set of agents")
-            self.obs[aid].append(o)
-        # Who is out, by `MultiAgentEpisode.add_env_step`'s rule: an episode whose agents are all
-        # out (in any mix) counts as terminated, and an episode-wide flag reaches every agent.
+        """Add one env step (see the class docstring for whose rows it extends)."""
         all_term, all_trunc = bool(terms.get("__all__")), bool(truncs.get("__all__"))
         out_now = {a for flags in (terms, truncs) for a, v in flags.items() if v and a != "__all__"}
-        term = all_term or all(a in self.ended or a in out_now for a in self.modules)
+        term_all = all_term or all(a in self.ended or a in out_now for a in self.modules)
         touched = (set(obs) | set(actions) | set(rewards) | set(terms) | set(truncs) | (set(self.modules) if all_term or all_trunc else set())) - {"__all__"}
-        for aid in touched - set(self.ended):
-            t, tr = bool(terms.get(aid)) or term, bool(truncs.get(aid)) or all_trunc
-            if t or tr:
-                self.ended[aid] = (t, tr)
+        for aid in touched:
+            if aid in self.ended:
+                continue
+            o, action, reward = obs.get(aid), actions.get(aid), float(rewards.get(aid) or 0.0)
+            term, trunc = bool(terms.get(aid)) or term_all, bool(truncs.get(aid)) or all_trunc
+            if o is not None and action is not None:
+                self._step(aid, o, action, logp.get(aid, 0.0), reward)
+            elif o is not None:
+                if aid in self.hanging:
+                    move, lp = self.hanging.pop(aid)
+                    self._step(aid, o, move, lp, self.hanging_reward.pop(aid, 0.0) + reward)
+                elif term or trunc:
+                    continue  # a last observation with no move to close: RLlib keeps nothing of it
+                elif aid not in self.modules:
+                    self._join(aid, o)
+                    continue
+                else:
+                    raise ValueError(f"agent {aid!r} observed twice without moving")
+            elif action is not None:
+                if trunc:
+                    raise ValueError(f"agent {aid!r} moved and was truncated without a last observation")
+                if term:
+                    self._step(aid, self.obs[aid][-1], action, logp.get(aid, 0.0), reward)
+                else:
+                    self.hanging[aid] = (action, logp.get(aid, 0.0))
+                    self.hanging_reward[aid] = reward
+            elif term or trunc:
+                if aid in self.hanging:
+                    if trunc:
+                        raise ValueError(f"agent {aid!r} moved and was truncated without a last observation")
+                    move, lp = self.hanging.pop(aid)
+                    self._step(aid, self.obs[aid][-1], move, lp, self.hanging_reward.pop(aid, 0.0) + reward)
+            elif aid in self.modules:
+                self.hanging_reward[aid] += reward
+            if term or trunc:
+                self.hanging.pop(aid, None)
+                self.hanging_reward.pop(aid, None)
+                if aid in self.modules:
+                    self.ended[aid] = (term, trunc)
+        self.observed = list(obs)
         self.chunk_steps += 1
         self.length += 1
-        self.is_done = term or all_trunc
+        self.is_done = term_all or all_trunc
 
     def emit(self, rollout: Rollout, learning: set[str]) -> None:
-        """Append each learning agent's moves of this chunk to `rollout`, then start the next chunk from the last observations."""
+        """Append each learning agent's moves of this chunk to `rollout`, then start the next chunk from the last observations.
+
+        A move still hanging stays with the next chunk, which starts from the observation it was made on.
+        """
         for aid, mid in self.modules.items():
             if self.actions[aid] and mid in learning:
                 terminated, truncated = self.ended.get(aid, (False, False))
@@ -131,7 +181,7 @@ class BatchedEnvRunner(LeanEnvRunner):
             games = [env.unwrapped for env in self.env.envs] if self.env is not None else []
             cached = self.__dict__["_can_batch"] = (
                 bool(games)
-                and all(isinstance(g, ReplicatedGame) and not any(c.is_aec for c in g.copies) for g in games)
+                and all(isinstance(g, ReplicatedGame) for g in games)
                 and isinstance(self.module, StackedEgoMultiRLModule)
                 and not self.config.restart_failed_sub_environments
                 and self.config.batch_mode == "truncate_episodes"

@@ -1,4 +1,10 @@
-"""`BatchedEnvRunner` trains exactly as RLlib's episode path does: same train batches, same weights, same metrics."""
+"""`BatchedEnvRunner` trains exactly as RLlib's episode path does: same train batches, same weights, same metrics.
+
+On every game: the bandit (parallel, one step), blocks (turn-based: a move waits for the
+mover's next observation) and Hanabi (turn-based, copies of different lengths). Batches of
+100 env steps per partner cut episodes between samples, so chunks and moves hanging across
+a cut are covered.
+"""
 
 from __future__ import annotations
 
@@ -23,9 +29,10 @@ COLUMNS = (Columns.ACTIONS, Columns.ACTION_LOGP, Postprocessing.ADVANTAGES, Post
 METRICS = ("num_env_steps_sampled", "num_episodes", "episode_return_mean", "episode_len_mean", "agent_episode_returns_mean", "module_episode_returns_mean", "num_module_steps_sampled")
 
 
-def _algorithm(batched: bool, population: str = "bandit-s2-hand", seeds: tuple[int, ...] = (3, 8)):
+def _algorithm(batched: bool, population: str = "bandit-s2-hand", seeds: tuple[int, ...] = (3, 8), **run):
+    ppo = {} if population.startswith("bandit") else {"rollout_per_partner": 100, "minibatch_size": 50}
     replicas = [
-        Replica(resolve(ExperimentConfig(population=population, lam=0.5, seed=s, model={"hidden": 8}, run={"batched_sampling": batched})))
+        Replica(resolve(ExperimentConfig(population=population, lam=0.5, seed=s, model={"hidden": 8}, ppo=ppo, run={"batched_sampling": batched, **run})))
         for s in seeds
     ]
     return build_ppo_config(replicas).build_algo()
@@ -36,11 +43,19 @@ def _train_batches(algo, samples: int) -> list:
     return [learner._make_batch_if_necessary(TrainingData(episodes=algo.env_runner.sample())) for _ in range(samples)]
 
 
-def test_batched_sampling_gives_rllibs_batches_weights_and_metrics(ray_session) -> None:
-    rllib, batched = _algorithm(False), _algorithm(True)
+@pytest.mark.parametrize("population", ["bandit-s2-hand", "blocks-perm", "hanabi-scripted"])
+def test_batched_sampling_gives_rllibs_batches_weights_and_metrics(ray_session, population: str) -> None:
+    rllib, batched = _algorithm(False, population), _algorithm(True, population)
     try:
         assert type(rllib.env_runner) is LeanEnvRunner and type(batched.env_runner) is BatchedEnvRunner
-        # Three samples in a row: the env copies, the partner mapping and every replica's generator carry over.
+        results = [[algo.train()["env_runners"] for _ in range(2)] for algo in (rllib, batched)]
+        for theirs, ours in zip(*results):
+            for key in METRICS:
+                assert ours[key] == pytest.approx(theirs[key]), key
+        weights = [algo.learner_group._learner.module[STACK_ID].state_dict() for algo in (rllib, batched)]
+        for name, value in weights[0].items():
+            assert torch.equal(value, weights[1][name]), name
+        # Three samples in a row: the env copies, the partner mapping, every replica's generator and the episodes cut between samples carry over.
         for theirs, ours in zip(_train_batches(rllib, 3), _train_batches(batched, 3)):
             heads = set(ours.policy_batches)
             assert heads == set(batched.learner_group._learner.module.head_ids())
@@ -51,24 +66,17 @@ def test_batched_sampling_gives_rllibs_batches_weights_and_metrics(ray_session) 
                     assert torch.equal(torch.as_tensor(mine[Columns.OBS][key]), torch.as_tensor(rl[Columns.OBS][key])), (mid, key)
                 for col in COLUMNS:
                     assert torch.equal(torch.as_tensor(mine[col]), torch.as_tensor(rl[col]).to(torch.as_tensor(mine[col]).dtype)), (mid, col)
-        results = [[algo.train()["env_runners"] for _ in range(2)] for algo in (rllib, batched)]
-        for theirs, ours in zip(*results):
-            for key in METRICS:
-                assert ours[key] == pytest.approx(theirs[key]), key
-        weights = [algo.learner_group._learner.module[STACK_ID].state_dict() for algo in (rllib, batched)]
-        for name, value in weights[0].items():
-            assert torch.equal(value, weights[1][name]), name
     finally:
         rllib.stop()
         batched.stop()
 
 
 def test_it_samples_rllibs_way_where_it_cannot_batch(ray_session) -> None:
-    blocks = _algorithm(True, population="blocks-perm", seeds=(0,))
+    restarting = _algorithm(True, seeds=(0,), restart_failed_sub_environments=True)
     bandit = _algorithm(True)
     try:
-        # A turn-based game: RLlib's episodes.
-        episodes = blocks.env_runner.sample()
+        # Envs that RLlib recreates when they raise: RLlib's episodes.
+        episodes = restarting.env_runner.sample()
         assert episodes and all(isinstance(e, MultiAgentEpisode) for e in episodes)
         # Whole episodes (an evaluation-style call) go through RLlib's loop too; batched sampling then starts afresh.
         whole = bandit.env_runner.sample(num_episodes=3)
@@ -76,7 +84,7 @@ def test_it_samples_rllibs_way_where_it_cannot_batch(ray_session) -> None:
         (rollout,) = bandit.env_runner.sample()
         assert isinstance(rollout, Rollout) and rollout.env_steps() == 256  # 4 partners x 64 env steps each
     finally:
-        blocks.stop()
+        restarting.stop()
         bandit.stop()
 
 
