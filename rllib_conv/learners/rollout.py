@@ -30,7 +30,8 @@ from ray.rllib.evaluation.postprocessing import Postprocessing
 from ray.rllib.policy.sample_batch import MultiAgentBatch, SampleBatch
 from ray.rllib.utils.postprocessing.value_predictions import compute_value_targets
 
-OBS_KEY, MASK_KEY = "observations", "action_mask"
+from rllib_conv.envs.rllib_adapter import RLLIB_MASK_KEY as MASK_KEY
+from rllib_conv.envs.rllib_adapter import RLLIB_OBS_KEY as OBS_KEY
 
 
 @dataclass

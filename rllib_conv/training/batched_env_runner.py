@@ -43,9 +43,11 @@ import torch
 from ray.rllib.core.columns import Columns
 from ray.rllib.core.rl_module.apis.value_function_api import ValueFunctionAPI
 from ray.rllib.utils.metrics import SAMPLE_TIMER
+from ray.rllib.utils.numpy import convert_to_numpy
 
 from rllib_conv.envs.replicated_game import ReplicatedGame
-from rllib_conv.learners.rollout import MASK_KEY, OBS_KEY, Rollout
+from rllib_conv.envs.rllib_adapter import RLLIB_MASK_KEY, RLLIB_OBS_KEY
+from rllib_conv.learners.rollout import Rollout
 from rllib_conv.modules.stacked_multi import StackedEgoMultiRLModule
 from rllib_conv.training.lean_env_runner import LeanEnvRunner
 
@@ -153,6 +155,15 @@ class RunningEpisode:
         self.length += 1
         self.is_done = term_all or all_trunc
 
+    def metrics(self) -> tuple:
+        """What RLlib logs of a finished episode: length, return, seconds, returns per agent and per module, moves per agent."""
+        per_module: dict[str, float] = defaultdict(float)
+        for aid, r in self.returns.items():
+            per_module[self.modules[aid]] += r
+        agents = {str(a): r for a, r in self.returns.items()}
+        moves = {str(a): n for a, n in self.moves.items()}
+        return self.length, sum(self.returns.values()), time.perf_counter() - self.start, agents, dict(per_module), moves
+
     def emit(self, rollout: Rollout, learning: set[str]) -> None:
         """Append each learning agent's moves of this chunk to `rollout`, then start the next chunk from the last observations.
 
@@ -167,12 +178,8 @@ class RunningEpisode:
         self.chunk_steps = 0
 
 
-def _numpy(x: Any) -> np.ndarray:
-    return x.detach().cpu().numpy() if isinstance(x, torch.Tensor) else np.asarray(x)
-
-
 class BatchedEnvRunner(LeanEnvRunner):
-    """A `LeanEnvRunner` that samples packed egos on parallel games without RLlib's episode objects (see the module docstring)."""
+    """A `LeanEnvRunner` that samples packed egos without RLlib's episode objects (see the module docstring)."""
 
     def _batched(self) -> bool:
         """Whether this runner's envs and module can be sampled here (decided once: they never change)."""
@@ -185,6 +192,7 @@ class BatchedEnvRunner(LeanEnvRunner):
                 and isinstance(self.module, StackedEgoMultiRLModule)
                 and not self.config.restart_failed_sub_environments
                 and self.config.batch_mode == "truncate_episodes"
+                and self.config.count_steps_by == "env_steps"
             )
         return cached
 
@@ -230,14 +238,7 @@ class BatchedEnvRunner(LeanEnvRunner):
                 rollout.num_agent_steps += len(obs)
                 if episode.is_done:
                     episode.emit(rollout, learning)
-                    self._log_episode_metrics(
-                        episode.length,
-                        sum(episode.returns.values()),
-                        time.perf_counter() - episode.start,
-                        {str(a): r for a, r in episode.returns.items()},
-                        _module_returns(episode),
-                        {str(a): n for a, n in episode.moves.items()},
-                    )
+                    self._log_episode_metrics(*episode.metrics())
                     lanes[i] = None
         for episode in lanes:  # running episodes go out as chunks and continue next call
             if episode is not None and episode.chunk_steps:
@@ -260,20 +261,13 @@ class BatchedEnvRunner(LeanEnvRunner):
         batch = {}
         for mid, where in rows.items():
             last = [lanes[i].obs[aid][-1] for i, aid in where]
-            batch[mid] = {Columns.OBS: {key: torch.from_numpy(np.stack([o[key] for o in last])) for key in (OBS_KEY, MASK_KEY)}}
+            batch[mid] = {Columns.OBS: {key: torch.from_numpy(np.stack([o[key] for o in last])) for key in (RLLIB_OBS_KEY, RLLIB_MASK_KEY)}}
         out = self.module.forward_exploration(batch)
         for mid, where in rows.items():
-            acts = _numpy(out[mid][Columns.ACTIONS])
-            lps = _numpy(out[mid][Columns.ACTION_LOGP]) if Columns.ACTION_LOGP in out[mid] else None
+            acts = convert_to_numpy(out[mid][Columns.ACTIONS])
+            lps = convert_to_numpy(out[mid][Columns.ACTION_LOGP]) if Columns.ACTION_LOGP in out[mid] else None
             for j, (i, aid) in enumerate(where):
                 actions[i][aid] = acts[j]
                 if lps is not None:
                     logp[i][aid] = lps[j]
         return actions, logp
-
-
-def _module_returns(episode: RunningEpisode) -> dict[str, float]:
-    returns: dict[str, float] = defaultdict(float)
-    for aid, r in episode.returns.items():
-        returns[episode.modules[aid]] += r
-    return dict(returns)
