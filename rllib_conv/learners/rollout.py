@@ -13,7 +13,7 @@ A `Rollout` is what a sampler that skips the episode objects returns instead: th
 segments, one per (episode chunk, agent) with at least one move, appended per module in
 the same order. `rollout_train_batch` makes the train batch from rollouts with RLlib's
 own arithmetic, so it equals the connector's batch row for row
-(`tests/learners/test_rollout.py`). Only modules that learn (those with values) need
+(`tests/training/test_rollout.py`). Only modules that learn (those with values) need
 their rows.
 """
 

@@ -42,6 +42,7 @@ import numpy as np
 import torch
 from ray.rllib.core.columns import Columns
 from ray.rllib.core.rl_module.apis.value_function_api import ValueFunctionAPI
+from ray.rllib.env.env_runner import NUM_ENV_STEP_FAILURES_LIFETIME
 from ray.rllib.utils.metrics import SAMPLE_TIMER
 from ray.rllib.utils.numpy import convert_to_numpy
 
@@ -227,12 +228,11 @@ class BatchedEnvRunner(LeanEnvRunner):
         while env_ts < num_timesteps:
             actions, logp = self._act(lanes)
             for i, episode in enumerate(lanes):
-                env = self.env.envs[i]
                 if episode is None:  # ended in the last iteration: reset now, as RLlib's vector env does
-                    obs, _ = env.reset()
+                    obs, _ = self._env_call(i, "reset")
                     lanes[i] = RunningEpisode(obs, mapping)
                     continue
-                obs, rewards, terms, truncs, _ = env.step(actions[i])
+                obs, rewards, terms, truncs, _ = self._env_call(i, "step", actions[i])
                 episode.record(actions[i], logp[i], obs, rewards, terms, truncs)
                 env_ts += self._increase_sampled_metrics(1, obs, episode)
                 rollout.num_agent_steps += len(obs)
@@ -246,6 +246,14 @@ class BatchedEnvRunner(LeanEnvRunner):
         self.__dict__["_lanes"] = lanes
         rollout.num_env_steps = env_ts
         return rollout
+
+    def _env_call(self, i: int, method: str, *args: Any) -> Any:
+        """Sub-environment `i`'s `reset()` or `step(actions)`; a failure is raised as RLlib's runner raises it (`RuntimeError from` it)."""
+        try:
+            return getattr(self.env.envs[i], method)(*args)
+        except Exception as e:
+            self.metrics.log_value(NUM_ENV_STEP_FAILURES_LIFETIME, 1, reduce="lifetime_sum")
+            raise RuntimeError(f"sub-environment {i} failed in {method}(); run.restart_failed_sub_environments: true recreates it instead") from e
 
     def _act(self, lanes: list[RunningEpisode | None]) -> tuple[list[dict], list[dict]]:
         """One forward pass for every agent to act, rows per module in lane order; actions and log-probabilities per lane."""
