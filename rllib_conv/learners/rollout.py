@@ -94,12 +94,8 @@ def _module_columns(parts: list[ModuleRows]) -> dict[str, np.ndarray]:
     ends = np.cumsum([n + 1 for n in lengths]) - 1  # each segment's bootstrap row
     real = np.ones(ends[-1] + 1, dtype=bool)
     real[ends] = False
-
-    def spread(values: list, fill: Any, dtype: Any) -> np.ndarray:
-        out = np.full(len(real), fill, dtype=dtype)
-        out[real] = values
-        return out
-
+    rewards = np.zeros(len(real), dtype=np.float32)  # a bootstrap row earns 0
+    rewards[real] = [r for p in parts for r in p.rewards]
     term = np.zeros(len(real), dtype=bool)
     trunc = np.zeros(len(real), dtype=bool)
     term[ends - 1] = [t for p in parts for t in p.terminated]
@@ -109,7 +105,7 @@ def _module_columns(parts: list[ModuleRows]) -> dict[str, np.ndarray]:
         "mask": np.stack([m for p in parts for m in p.masks]).astype(np.float32, copy=False),
         "actions": np.array([a for p in parts for a in p.actions], dtype=np.int64),
         "logp": np.array([lp for p in parts for lp in p.logp], dtype=np.float32),
-        "rewards": spread([r for p in parts for r in p.rewards], 0.0, np.float32),
+        "rewards": rewards,
         "terminateds": term,
         "truncateds": trunc,
         "real": real,
