@@ -77,7 +77,6 @@ class RunningEpisode:
         self.hanging: dict[str, tuple[Any, float]] = {}  # agent -> (move, log-probability) awaiting its next observation
         self.hanging_reward: dict[str, float] = defaultdict(float)  # what a hanging move has earned so far
         self.ended: dict[str, tuple[bool, bool]] = {}  # agent -> (terminated, truncated), once it is out
-        self.observed: list[str] = []  # who observed the last step
         self.chunk_steps = 0
         self.length = 0
         self.returns: dict[str, float] = defaultdict(float)
@@ -85,7 +84,7 @@ class RunningEpisode:
         self.start = time.perf_counter()
         for aid, o in obs.items():  # RLlib's `add_env_reset` maps the agents in this order
             self._join(aid, o)
-        self.observed = list(obs)
+        self.observed: list[str] = list(obs)  # who observed the last step
 
     def module_for(self, agent_id: str) -> str:
         return self.modules[agent_id]
