@@ -6,9 +6,8 @@ For each game (bandit with 2 symmetric contexts, blocks, Hanabi), in one run:
 - `ours_3`: three seeds packed as replicas of one algorithm (how `train` runs an
   experiment's seeds), counted in the moves of all three replicas' own game copies, as
   training budgets count them (each replica trains as alone);
-- `ours_3_episodes`: the same through RLlib's episode objects (`run.batched_sampling: false`);
-  it differs from `ours_3` only on parallel games (the bandit), which `BatchedEnvRunner`
-  samples without them (same batches, same weights);
+- `ours_3_episodes`: the same through RLlib's episode objects (`run.batched_sampling: false`),
+  how every ego sampled before `BatchedEnvRunner` (same batches, same weights);
 - `ours_10` (bandit only): ten seeds packed, as a 10-seed experiment's trial holds them
   when nothing else runs beside it;
 - `rllib_default`: `PPOConfig()` defaults (2 env runners, 1 env each, 256x256 MLPs,

@@ -76,7 +76,8 @@ class RunSettings(Strict):
     num_env_runners: int = Field(0, ge=0)
     num_envs_per_env_runner: PositiveInt = 8
     # Egos sample without RLlib's episode objects (`BatchedEnvRunner`):
-    # the same train batches, 2-2.5x faster on the bandit and blocks; False samples through RLlib's episodes.
+    # the same train batches, per trial 1.6x faster on the bandit, 2.5x on blocks, 1.1x on Hanabi
+    # (benchmarks/train_throughput.py); False samples through RLlib's episodes.
     batched_sampling: bool = True
     restart_failed_sub_environments: bool = False
     # Custom Ray resources each trial asks for: {"second_node": 1} runs it only on nodes
