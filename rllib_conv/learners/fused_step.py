@@ -1,10 +1,14 @@
-"""One optimizer step for every registered Adam at once: global-norm clipping per optimizer (or per replica), then torch's foreach Adam.
+"""One optimizer step for every registered Adam at once: global-norm clipping per optimizer (or per replica), then torch's fused Adam.
 
 RLlib's learner clips each optimizer's gradients by their global norm (`grad_clip_by=
 "global_norm"`), zeroes non-finite gradients, then calls `step()` on every optimizer in
 turn, paying Python overhead per optimizer and per parameter. `FusedAdamStep` does the same
 arithmetic with a few tensor ops: one clip coefficient per optimizer, then one functional
-`adam` call per group of optimizers sharing their hyperparameters. The optimizers' `state`
+`adam` call per group of optimizers sharing their hyperparameters, on torch's fused kernel
+(one pass over each tensor; the foreach path makes a dozen, and on the bandit's 30-unit
+nets costs ~2.7x as long, on Hanabi's 500-unit ones ~5.6x). Fused Adam is Adam's arithmetic
+with other rounding: weights agree with RLlib's loop to float tolerance, not bit for bit
+(`tests/learners/test_fused_step.py`, `tests/learners/test_fused_update.py`). The optimizers' `state`
 (step counts, moments) is theirs, initialised exactly as `torch.optim.Adam` does, so
 checkpoints and RLlib's own loop see ordinary optimizers.
 
@@ -129,7 +133,7 @@ class FusedAdamStep:
                 [states[j]["exp_avg_sq"] for j in idx],
                 [],
                 [states[j]["step"] for j in idx],
-                foreach=True,
+                fused=True,
                 amsgrad=False,
                 beta1=betas[0],
                 beta2=betas[1],
