@@ -1,7 +1,7 @@
 """Wall time of fixed `reproduce` slices, by the code before the speed work (a git worktree of its commit) and now.
 
     OMP_NUM_THREADS=1 python benchmarks/reproduce_walltime.py [--old-commit 63f6b75] [--slices bandit blocks] [--work DIR] [--name NAME]
-    python benchmarks/reproduce_walltime.py --measured reproduce/bandit --old-summary benchmarks/results/reproduce_bandit_extended.json
+    python benchmarks/reproduce_walltime.py --measured reproduce/bandit --old-summary benchmarks/results/reproduce_bandit_extended.json [--name NAME]
 
 Each slice runs from an empty folder, old code then new, one after the other on the same
 machine (it is shared and noisy: compare the ratio, not the seconds). Printed and written
@@ -13,7 +13,7 @@ and idle cores), read from the `time/*` results every trial reports.
 
 `--measured` runs nothing: it reads a full plan already run by the new code (its stage
 markers and trials) beside the stage times an old `reproduce_summary` file recorded, and
-writes `reproduce_walltime_<game>_full.json`.
+writes `reproduce_walltime_<game>_full.json` (or `<NAME>.json`).
 """
 
 from __future__ import annotations
@@ -106,8 +106,8 @@ def _print_rows(rows: list[dict[str, Any]]) -> None:
         print(f"{row['slice']:8} {'total':9} {row['old_wall_s']:8.0f} {row['new_wall_s']:8.0f} {row['speedup']:6.1f}")
 
 
-def measured(game_dir: Path, old_summary: Path, cores: int) -> None:
-    """The full plan of `game_dir` (already run) against the stage times of `old_summary`; print and write them."""
+def measured(game_dir: Path, old_summary: Path, cores: int, name: str | None = None) -> None:
+    """The full plan of `game_dir` (already run) against the stage times of `old_summary`; print and write them (to `name`, default `reproduce_walltime_<game>_full`)."""
     old = {s["stage"]: s["seconds"] for s in json.loads(old_summary.read_text())["stages"] if s.get("done")}
     new = {s["stage"]: s["seconds"] for s in loaders.load_stage_times(game_dir).to_dict(orient="records") if s.get("done")}
     row = {
@@ -121,7 +121,7 @@ def measured(game_dir: Path, old_summary: Path, cores: int) -> None:
         "new_breakdown": breakdown(game_dir, new, cores),
     }
     _print_rows([row])
-    print(f"wrote {write_result(f'reproduce_walltime_{game_dir.name}_full', {'old_summary': str(old_summary), 'cores': cores, 'slices': [row]})}")
+    print(f"wrote {write_result(name or f'reproduce_walltime_{game_dir.name}_full', {'old_summary': str(old_summary), 'cores': cores, 'slices': [row]})}")
 
 
 def main() -> None:
@@ -131,13 +131,13 @@ def main() -> None:
     p.add_argument("--work", type=Path, default=None, help="where the old worktree and the slices' folders go (default: a temp dir)")
     p.add_argument("--measured", type=Path, help="run nothing: a reproduce game folder the new code already ran in full")
     p.add_argument("--old-summary", type=Path, help="with --measured: the old code's reproduce_summary JSON (its stage times)")
-    p.add_argument("--name", default="reproduce_walltime", help="the results file, benchmarks/results/<NAME>.json")
+    p.add_argument("--name", default=None, help="the results file, benchmarks/results/<NAME>.json (default: reproduce_walltime, or with --measured reproduce_walltime_<game>_full)")
     args = p.parse_args()
     cores = os.cpu_count() or 1
     if args.measured or args.old_summary:
         if not (args.measured and args.measured.is_dir() and args.old_summary and args.old_summary.is_file()):
             p.error("--measured needs a game folder and --old-summary an existing reproduce_summary JSON")
-        measured(args.measured, args.old_summary, cores)
+        measured(args.measured, args.old_summary, cores, args.name)
         return
     work = args.work or Path(tempfile.mkdtemp(prefix="walltime-"))
     old = worktree(args.old_commit, work)
@@ -163,7 +163,8 @@ def main() -> None:
         print(f"{name}: old {before['wall_s']:.0f} s, new {after['wall_s']:.0f} s, {before['wall_s'] / after['wall_s']:.1f}x faster", flush=True)
     print()
     _print_rows(rows)
-    path = write_result(args.name, {"old_commit": args.old_commit, "cores": cores, "slices": kept_slices(rows, args.name) + rows})
+    name = args.name or "reproduce_walltime"
+    path = write_result(name, {"old_commit": args.old_commit, "cores": cores, "slices": kept_slices(rows, name) + rows})
     print(f"wrote {path}")
     print(f"machine: {machine()['cpu']}, {cores} cores")
 

@@ -5,8 +5,9 @@ RLlib's learner clips each optimizer's gradients by their global norm (`grad_cli
 turn, paying Python overhead per optimizer and per parameter. `FusedAdamStep` does the same
 arithmetic with a few tensor ops: one clip coefficient per optimizer, then one functional
 `adam` call per group of optimizers sharing their hyperparameters, on torch's fused kernel
-(one pass over each tensor; the foreach path makes a dozen, and on the bandit's 30-unit
-nets costs ~2.7x as long, on Hanabi's 500-unit ones ~5.6x). Fused Adam is Adam's arithmetic
+(one pass over each tensor; the foreach path makes a dozen: the Adam call alone takes ~2.7x
+as long on the bandit's 30-unit nets, a whole learner update 1.03-1.2x,
+`benchmarks/adam_kernel.py`). Fused Adam is Adam's arithmetic
 with other rounding: weights agree with RLlib's loop to float tolerance, not bit for bit
 (`tests/learners/test_fused_step.py`, `tests/learners/test_fused_update.py`). The optimizers' `state`
 (step counts, moments) is theirs, initialised exactly as `torch.optim.Adam` does, so
