@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
+import torch
 import yaml
 
 from rllib_conv.cli import main
 from rllib_conv.common import methods, resources
+from rllib_conv.common.arrays import to_numpy
 from rllib_conv.common.run_folders import experiment_name, read_marker, split_experiment, write_marker
 from rllib_conv.pipelines.plans import plan_for, read_plan_file, shipped_plan
 from rllib_conv.training.experiment import ExperimentConfig
@@ -82,3 +85,10 @@ def test_reproduce_refuses_a_plan_file_for_every_game_at_once(tmp_path, capsys) 
     assert main(["reproduce", "all", "--plan", str(shipped_plan("bandit")), "--out", str(tmp_path / "out")]) == 2
     assert "--plan: a plan file is for one game" in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
+
+
+def test_to_numpy_takes_tensors_with_gradients_and_plain_sequences() -> None:
+    t = torch.tensor([1.5, -2.0], requires_grad=True) * 2
+    out = to_numpy(t)
+    assert isinstance(out, np.ndarray) and out.dtype == np.float32 and out.tolist() == [3.0, -4.0]
+    assert to_numpy([1, 2]).tolist() == [1, 2] and to_numpy(np.int64(3)).shape == ()

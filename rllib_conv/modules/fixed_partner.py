@@ -13,12 +13,9 @@ from ray.rllib.core.columns import Columns
 from ray.rllib.core.rl_module.rl_module import RLModule
 
 import rllib_conv.partners  # noqa: F401  (registers every built-in partner kind in this process)
+from rllib_conv.common.arrays import to_numpy
 from rllib_conv.modules.task_module import split_obs
 from rllib_conv.partners.kinds import partner_from_spec
-
-
-def _numpy(x: Any) -> np.ndarray:
-    return x.detach().cpu().numpy() if hasattr(x, "detach") else np.asarray(x)
 
 
 class FixedPartnerModule(RLModule):
@@ -52,8 +49,8 @@ class FixedPartnerModule(RLModule):
 
     def _forward(self, batch: dict[str, Any], **kwargs) -> dict[str, Any]:
         obs, mask = split_obs(batch)
-        obs = _numpy(obs)
-        mask = np.ones((len(obs), self.action_space.n), dtype=np.int8) if mask is None else _numpy(mask).astype(np.int8)
+        obs = to_numpy(obs)
+        mask = np.ones((len(obs), self.action_space.n), dtype=np.int8) if mask is None else to_numpy(mask).astype(np.int8)
         actions = self.partner.act_batch(obs, mask)
         if self._moves is not None and len(obs):
             self._moves.append((np.array(obs), np.array(mask), np.asarray(actions)))

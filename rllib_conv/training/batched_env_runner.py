@@ -45,16 +45,12 @@ from ray.rllib.core.rl_module.apis.value_function_api import ValueFunctionAPI
 from ray.rllib.env.env_runner import NUM_ENV_STEP_FAILURES_LIFETIME
 from ray.rllib.utils.metrics import SAMPLE_TIMER
 
+from rllib_conv.common.arrays import to_numpy
 from rllib_conv.envs.replicated_game import ReplicatedGame
 from rllib_conv.envs.rllib_adapter import RLLIB_MASK_KEY, RLLIB_OBS_KEY
 from rllib_conv.learners.rollout import Rollout
 from rllib_conv.modules.stacked_multi import StackedEgoMultiRLModule
 from rllib_conv.training.lean_env_runner import LeanEnvRunner
-
-
-def _numpy(x: Any) -> np.ndarray:
-    """A module output column as NumPy (heads give CPU tensors, fixed partners arrays); RLlib's tree-walking converter costs more here."""
-    return x.numpy() if isinstance(x, torch.Tensor) else np.asarray(x)
 
 
 class RunningEpisode:
@@ -275,8 +271,8 @@ class BatchedEnvRunner(LeanEnvRunner):
             batch[mid] = {Columns.OBS: {key: torch.from_numpy(np.stack([o[key] for o in last])) for key in (RLLIB_OBS_KEY, RLLIB_MASK_KEY)}}
         out = self.module.forward_exploration(batch)
         for mid, where in rows.items():
-            acts = _numpy(out[mid][Columns.ACTIONS])
-            lps = _numpy(out[mid][Columns.ACTION_LOGP]) if Columns.ACTION_LOGP in out[mid] else None
+            acts = to_numpy(out[mid][Columns.ACTIONS])
+            lps = to_numpy(out[mid][Columns.ACTION_LOGP]) if Columns.ACTION_LOGP in out[mid] else None
             for j, (i, aid) in enumerate(where):
                 actions[i][aid] = acts[j]
                 if lps is not None:

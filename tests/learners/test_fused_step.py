@@ -30,8 +30,8 @@ def test_fused_step_equals_torch_adam_with_each_replica_clipped_alone(grad_clip:
             p.grad = g.clone()
         norms = fused.step()
         for r in range(2):
-            for params, opt in zip((ref[r][:2], ref[r][2:]), ref_opts[r]):
-                offset = 0 if opt is ref_opts[r][0] else 2
+            for offset, opt in zip((0, 2), ref_opts[r]):
+                params = ref[r][offset : offset + 2]
                 for i, p in enumerate(params):
                     p.grad = grads[offset + i][r].clone()
                 if grad_clip is not None:
