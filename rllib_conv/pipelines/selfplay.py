@@ -42,6 +42,7 @@ from rllib_conv.common.run_folders import (
 from rllib_conv.common.sealed import seal, verify
 from rllib_conv.envs.rllib_adapter import PettingZooMultiAgentEnv, RLlibGame, game_env_config
 from rllib_conv.learners.marginal_learner import MarginalPPOLearner
+from rllib_conv.learners.minibatches import module_seed
 from rllib_conv.learners.settings import LearnerSettings
 from rllib_conv.modules.task_module import TaskModule
 from rllib_conv.partners.play import play_episodes
@@ -49,7 +50,9 @@ from rllib_conv.partners.population import PartnerEntry, Population
 from rllib_conv.partners.trained import PolicyPartner
 from rllib_conv.pipelines.selfplay_config import SelfPlayConfig
 from rllib_conv.training.algorithm import base_ppo_config
+from rllib_conv.training.batched_env_runner import BatchedEnvRunner
 from rllib_conv.training.callbacks import STEPS_DONE, STEPS_TOTAL, StageProgress
+from rllib_conv.training.lean_env_runner import LeanEnvRunner
 from rllib_conv.training.trainable import AlgorithmTrainable
 from rllib_conv.training.tuning import fit
 
@@ -90,12 +93,23 @@ def build_selfplay_config(cfg: SelfPlayConfig) -> PPOConfig:
         )
         for a in game_agents(cfg)
     }
+    shuffle_seeds = {mid: module_seed(cfg.seed + cfg.pair, mid) for mid in specs}
     return (
-        base_ppo_config(RLlibGame, game_env_config(cfg.env, cfg.env_config), cfg.ppo, cfg.run, cfg.seed + cfg.pair, cfg.ppo.rollout_per_partner)
+        base_ppo_config(
+            RLlibGame,
+            game_env_config(cfg.env, cfg.env_config),
+            cfg.ppo,
+            cfg.run,
+            cfg.seed + cfg.pair,
+            cfg.ppo.rollout_per_partner,
+            BatchedEnvRunner if cfg.run.batched_sampling else LeanEnvRunner,
+        )
         # A list, not a set: see build_ppo_config.
         .multi_agent(policies=list(specs), policy_mapping_fn=SeatMapping(cfg.shared_seats), policies_to_train=list(specs))
         .rl_module(rl_module_spec=MultiRLModuleSpec(rl_module_specs=specs))
-        .learners(learner_class=MarginalPPOLearner, learner_config_dict=LearnerSettings(adam_eps=cfg.ppo.adam_eps).config_dict())
+        # Each seat shuffles its minibatches with its own generator: RLlib's global one would
+        # serve the seats in the order of a set of agent IDs, which follows the string hash seed.
+        .learners(learner_class=MarginalPPOLearner, learner_config_dict=LearnerSettings(adam_eps=cfg.ppo.adam_eps, shuffle_seeds=shuffle_seeds).config_dict())
     )
 
 

@@ -24,11 +24,18 @@ batch equals the episode path's row for row and training is unchanged on the ban
 and Hanabi (`tests/training/test_batched_env_runner.py`). Metrics are counted as
 `LeanEnvRunner` counts them.
 
-It samples this way when every sub-environment is a `ReplicatedGame` and the module is a
-`StackedEgoMultiRLModule` (whose heads and fixed partners return their actions); for other
-modules (self-play pairs), evaluation-style calls (`num_episodes`, `explore=False`, random
-actions) or `restart_failed_sub_environments` it is RLlib's runner. Switching between the
-two resets every sub-environment (episodes in flight are dropped).
+It samples this way when every sub-environment is one of our games (`ReplicatedGame`, or
+`PettingZooMultiAgentEnv` such as a self-play pair's `RLlibGame`) and the module is a
+`StackedEgoMultiRLModule` (whose heads and fixed partners return their actions) or a
+multi-module of `TaskModule`s (self-play seats), whose actions are drawn from the module's
+exploration distribution as RLlib's `GetActions` draws them, one module after another in the
+order their rows first appear (lane, then the env's observation order). RLlib's own path
+draws them in the order of a Python set of agent IDs, which follows the process's string
+hash seed: with two seats moving at once (the bandit) its self-play pairs trained
+differently from one process to the next; here they do not. For evaluation-style calls
+(`num_episodes`, `explore=False`, random actions), other modules or
+`restart_failed_sub_environments` it is RLlib's runner. Switching between the two resets
+every sub-environment (episodes in flight are dropped).
 """
 
 from __future__ import annotations
@@ -47,9 +54,10 @@ from ray.rllib.utils.metrics import SAMPLE_TIMER
 
 from rllib_conv.common.arrays import to_numpy
 from rllib_conv.envs.replicated_game import ReplicatedGame
-from rllib_conv.envs.rllib_adapter import RLLIB_MASK_KEY, RLLIB_OBS_KEY
+from rllib_conv.envs.rllib_adapter import RLLIB_MASK_KEY, RLLIB_OBS_KEY, PettingZooMultiAgentEnv
 from rllib_conv.learners.rollout import Rollout
 from rllib_conv.modules.stacked_multi import StackedEgoMultiRLModule
+from rllib_conv.modules.task_module import TaskModule
 from rllib_conv.training.lean_env_runner import LeanEnvRunner
 
 
@@ -188,8 +196,8 @@ class BatchedEnvRunner(LeanEnvRunner):
             games = [env.unwrapped for env in self.env.envs] if self.env is not None else []
             cached = self.__dict__["_can_batch"] = (
                 bool(games)
-                and all(isinstance(g, ReplicatedGame) for g in games)
-                and isinstance(self.module, StackedEgoMultiRLModule)
+                and all(isinstance(g, (ReplicatedGame, PettingZooMultiAgentEnv)) for g in games)
+                and (isinstance(self.module, StackedEgoMultiRLModule) or all(isinstance(m, TaskModule) for m in self.module._rl_modules.values()))
                 and not self.config.restart_failed_sub_environments
                 and self.config.batch_mode == "truncate_episodes"
                 and self.config.count_steps_by == "env_steps"
@@ -271,6 +279,8 @@ class BatchedEnvRunner(LeanEnvRunner):
             batch[mid] = {Columns.OBS: {key: torch.from_numpy(np.stack([o[key] for o in last])) for key in (RLLIB_OBS_KEY, RLLIB_MASK_KEY)}}
         out = self.module.forward_exploration(batch)
         for mid, where in rows.items():
+            if Columns.ACTIONS not in out[mid]:
+                self._draw(mid, out[mid])
             acts = to_numpy(out[mid][Columns.ACTIONS])
             lps = to_numpy(out[mid][Columns.ACTION_LOGP]) if Columns.ACTION_LOGP in out[mid] else None
             for j, (i, aid) in enumerate(where):
@@ -278,3 +288,9 @@ class BatchedEnvRunner(LeanEnvRunner):
                 if lps is not None:
                     logp[i][aid] = lps[j]
         return actions, logp
+
+    def _draw(self, module_id: str, out: dict) -> None:
+        """Draw a module's actions from its exploration distribution into `out`, with their log-probabilities (RLlib's `GetActions`)."""
+        dist = self.module[module_id].get_exploration_action_dist_cls().from_logits(out[Columns.ACTION_DIST_INPUTS])
+        out[Columns.ACTIONS] = dist.sample()
+        out[Columns.ACTION_LOGP] = dist.logp(out[Columns.ACTIONS])

@@ -1,0 +1,84 @@
+"""A self-play pair's `train()` with the batched runner vs RLlib's episode path, interleaved in one process.
+
+For each game, two algorithms of the same self-play pair (`tune_configs/selfplay_<game>.yaml`,
+pair 0), one sampling through `BatchedEnvRunner` and one through RLlib's episodes
+(`run.batched_sampling: false`, the self-play path before 2026-12-03), take turns at
+`train()` (RLlib, batched, batched, RLlib, ...), so drift in the machine's speed falls on
+both alike. Gate checks are not part of `train()`. Prints the median seconds per iteration,
+the env steps/s and the ratio; writes `benchmarks/results/selfplay_sampling.json`.
+
+    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/selfplay_sampling.py [--iterations 6] [--games bandit blocks hanabi]
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import pandas as pd
+import ray
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import write_result  # noqa: E402
+
+from rllib_conv.common import config_files  # noqa: E402
+from rllib_conv.common.resources import config_file  # noqa: E402
+from rllib_conv.pipelines.selfplay import build_selfplay_config  # noqa: E402
+from rllib_conv.pipelines.selfplay_config import SelfPlayConfig  # noqa: E402
+
+PATHS = {"rllib": False, "batched": True}  # name -> run.batched_sampling
+
+
+def iteration_times(game: str, iterations: int) -> tuple[dict[str, float], int]:
+    """Median seconds of one `train()` per path, and the env steps of one iteration."""
+    algos = {}
+    try:
+        for name, batched in PATHS.items():
+            raw = config_files.load(config_file(f"selfplay_{game}.yaml"), [f"run.batched_sampling={batched}"], schema=SelfPlayConfig)
+            cfg = SelfPlayConfig.model_validate(raw).resolve()
+            algos[name] = build_selfplay_config(cfg).build_algo()
+            algos[name].train()  # warm-up
+        times: dict[str, list[float]] = {name: [] for name in PATHS}
+        for i in range(iterations):
+            for name in list(PATHS) if i % 2 == 0 else list(PATHS)[::-1]:
+                start = time.perf_counter()
+                algos[name].train()
+                times[name].append(time.perf_counter() - start)
+        return {name: statistics.median(t) for name, t in times.items()}, cfg.ppo.rollout_per_partner
+    finally:
+        for algo in algos.values():
+            algo.stop()
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--iterations", type=int, default=6, help="timed train() calls per path")
+    parser.add_argument("--games", nargs="+", default=["bandit", "blocks", "hanabi"], choices=["bandit", "blocks", "hanabi"])
+    args = parser.parse_args()
+    ray.init(num_cpus=1, include_dashboard=False, log_to_driver=False)
+    rows = []
+    try:
+        for game in args.games:
+            t, steps = iteration_times(game, args.iterations)
+            rows.append(
+                {
+                    "env": game,
+                    "env_steps_per_iteration": steps,
+                    "rllib_s": t["rllib"],
+                    "batched_s": t["batched"],
+                    "rllib_steps_per_s": steps / t["rllib"],
+                    "batched_steps_per_s": steps / t["batched"],
+                    "rllib/batched": t["rllib"] / t["batched"],
+                }
+            )
+            print(pd.DataFrame(rows).to_string(index=False, float_format="{:.3f}".format), flush=True)
+    finally:
+        ray.shutdown()
+    print(f"wrote {write_result('selfplay_sampling', {'iterations': args.iterations, 'rows': rows})}")
+
+
+if __name__ == "__main__":
+    main()
