@@ -75,9 +75,10 @@ class RunSettings(Strict):
     timesteps: PositiveInt | None = None
     num_env_runners: int = Field(0, ge=0)
     num_envs_per_env_runner: PositiveInt = 8
-    # Egos sample without RLlib's episode objects (`BatchedEnvRunner`):
-    # the same train batches, per trial 1.6x faster on the bandit, 2.5x on blocks, 1.1x on Hanabi
-    # (benchmarks/train_throughput.py); False samples through RLlib's episodes.
+    # Egos and self-play pairs sample without RLlib's episode objects (`BatchedEnvRunner`):
+    # the same train batches; egos per trial 1.6x faster on the bandit, 2.5x on blocks, 1.1x on
+    # Hanabi (benchmarks/train_throughput.py), self-play pairs 2.0-2.7x
+    # (benchmarks/selfplay_sampling.py); False samples through RLlib's episodes.
     batched_sampling: bool = True
     restart_failed_sub_environments: bool = False
     # Custom Ray resources each trial asks for: {"second_node": 1} runs it only on nodes

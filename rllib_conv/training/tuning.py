@@ -189,6 +189,8 @@ def fit(
         tuner = tune.Tuner(
             trainable,
             param_space=param_space,
+            # One worker runs trial after trial (`AlgorithmTrainable.reset_config`) instead of a new process per trial.
+            tune_config=tune.TuneConfig(reuse_actors=True),
             run_config=tune.RunConfig(
                 name=name,
                 storage_path=str(path.parent),

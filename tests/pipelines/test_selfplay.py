@@ -8,6 +8,7 @@ import shutil
 import subprocess
 import sys
 import textwrap
+from collections import defaultdict
 
 import numpy as np
 import pandas as pd
@@ -112,6 +113,23 @@ def test_pairs_that_miss_the_gate_are_reported_not_kept(ray_session, tmp_path) -
     # An existing population is never replaced by accident.
     with pytest.raises(ValueError, match="already exists"):
         train_population(raw, out=tmp_path / "pops", storage=tmp_path / "runs")
+
+
+def test_a_pair_trains_the_same_in_a_reused_worker(trained, tmp_path) -> None:
+    """Tune runs trial after trial in one worker (`reuse_actors`); nothing of a trial carries into the next."""
+    root, population, _ = trained
+    by_worker = defaultdict(list)
+    for f in (root / "runs").glob("*/*/result.json"):
+        result = json.loads(f.read_text().strip().splitlines()[-1])
+        by_worker[result["pid"]].append(result)
+    later = [r for runs in by_worker.values() for r in sorted(runs, key=lambda r: r["timestamp"])[1:]]
+    assert later, "3 pairs on 2 CPUs: one worker should have run two of them"
+    seed = later[0]["seed"]
+    # The same pair (same seed) alone, in a fresh worker.
+    alone, _ = train_population(selfplay_raw(name="alone", seed=seed, train_pairs=1, test_pairs=0), out=tmp_path / "pops", storage=tmp_path / "runs")
+    before, after = next(e for e in population.partners if e.seed == seed), alone.partners[0]
+    for seat in (lambda e: e.build(), lambda e: partners.partner_from_spec(e.counterpart)):
+        np.testing.assert_array_equal(seat(after).probs(OBS, MASK), seat(before).probs(OBS, MASK))
 
 
 def test_a_pair_trains_the_same_in_any_process() -> None:
