@@ -49,6 +49,7 @@ import numpy as np
 import torch
 from ray.rllib.core.columns import Columns
 from ray.rllib.core.rl_module.apis.value_function_api import ValueFunctionAPI
+from ray.rllib.core.rl_module.multi_rl_module import MultiRLModule
 from ray.rllib.env.env_runner import NUM_ENV_STEP_FAILURES_LIFETIME
 from ray.rllib.utils.metrics import SAMPLE_TIMER
 
@@ -197,7 +198,7 @@ class BatchedEnvRunner(LeanEnvRunner):
             cached = self.__dict__["_can_batch"] = (
                 bool(games)
                 and all(isinstance(g, (ReplicatedGame, PettingZooMultiAgentEnv)) for g in games)
-                and (isinstance(self.module, StackedEgoMultiRLModule) or all(isinstance(m, TaskModule) for m in self.module._rl_modules.values()))
+                and (isinstance(self.module, StackedEgoMultiRLModule) or (isinstance(self.module, MultiRLModule) and all(isinstance(m, TaskModule) for m in self.module._rl_modules.values())))
                 and not self.config.restart_failed_sub_environments
                 and self.config.batch_mode == "truncate_episodes"
                 and self.config.count_steps_by == "env_steps"
