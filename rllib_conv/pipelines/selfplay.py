@@ -50,9 +50,7 @@ from rllib_conv.partners.population import PartnerEntry, Population
 from rllib_conv.partners.trained import PolicyPartner
 from rllib_conv.pipelines.selfplay_config import SelfPlayConfig
 from rllib_conv.training.algorithm import base_ppo_config
-from rllib_conv.training.batched_env_runner import BatchedEnvRunner
 from rllib_conv.training.callbacks import STEPS_DONE, STEPS_TOTAL, StageProgress
-from rllib_conv.training.lean_env_runner import LeanEnvRunner
 from rllib_conv.training.trainable import AlgorithmTrainable
 from rllib_conv.training.tuning import fit
 
@@ -95,15 +93,7 @@ def build_selfplay_config(cfg: SelfPlayConfig) -> PPOConfig:
     }
     shuffle_seeds = {mid: module_seed(cfg.seed + cfg.pair, mid) for mid in specs}
     return (
-        base_ppo_config(
-            RLlibGame,
-            game_env_config(cfg.env, cfg.env_config),
-            cfg.ppo,
-            cfg.run,
-            cfg.seed + cfg.pair,
-            cfg.ppo.rollout_per_partner,
-            BatchedEnvRunner if cfg.run.batched_sampling else LeanEnvRunner,
-        )
+        base_ppo_config(RLlibGame, game_env_config(cfg.env, cfg.env_config), cfg.ppo, cfg.run, cfg.seed + cfg.pair, cfg.ppo.rollout_per_partner)
         # A list, not a set: see build_ppo_config.
         .multi_agent(policies=list(specs), policy_mapping_fn=SeatMapping(cfg.shared_seats), policies_to_train=list(specs))
         .rl_module(rl_module_spec=MultiRLModuleSpec(rl_module_specs=specs))

@@ -154,12 +154,12 @@ def stacked_specs(replicas: list[Replica]) -> dict[str, RLModuleSpec]:
     return specs
 
 
-def base_ppo_config(env_class: type, env_config: dict, ppo: PPOSettings, run: RunSettings, seed: int, batch_size: int, env_runner_cls: type = LeanEnvRunner) -> PPOConfig:
+def base_ppo_config(env_class: type, env_config: dict, ppo: PPOSettings, run: RunSettings, seed: int, batch_size: int) -> PPOConfig:
     """The PPOConfig pieces shared by ego and self-play training (env, runners, learner, PPO).
 
     `env_class` and `env_config` are the RLlib env: `ReplicatedGame` for egos, `RLlibGame`
     for self-play pairs (their configs come from `replicated_env_config` / `game_env_config`);
-    `env_runner_cls` samples it.
+    `BatchedEnvRunner` samples it, or RLlib's episodes (`LeanEnvRunner`) with `run.batched_sampling: false`.
     """
     return (
         PPOConfig()
@@ -171,7 +171,8 @@ def base_ppo_config(env_class: type, env_config: dict, ppo: PPOSettings, run: Ru
             disable_env_checking=True,
         )
         .env_runners(
-            env_runner_cls=env_runner_cls,
+            # `BatchedEnvRunner` samples without RLlib's episode objects; `run.batched_sampling: false` keeps them.
+            env_runner_cls=BatchedEnvRunner if run.batched_sampling else LeanEnvRunner,
             num_env_runners=run.num_env_runners,
             num_envs_per_env_runner=run.num_envs_per_env_runner,
             rollout_fragment_length="auto",
@@ -238,8 +239,7 @@ def build_ppo_config(setup: EgoSetup | list[Replica], load: dict[str, str] | Non
     shuffle_seeds = {replica_id(mid, r): module_seed(rep.own_seed + 2, mid) for r, rep in enumerate(replicas) for mid in rep.setup.head_ids}
     batch = ppo.rollout_per_partner * len(first.train)
     env_config = replicated_env_config(first.population.env, first.env_config, [rep.own_seed for rep in replicas], BASE_SEED)
-    runner = BatchedEnvRunner if exp.run.batched_sampling else LeanEnvRunner
-    config = base_ppo_config(ReplicatedGame, env_config, ppo, exp.run, BASE_SEED, batch, runner)
+    config = base_ppo_config(ReplicatedGame, env_config, ppo, exp.run, BASE_SEED, batch)
     return (
         config
         .multi_agent(
