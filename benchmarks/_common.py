@@ -6,9 +6,14 @@ import datetime as dt
 import json
 import os
 import platform
+import statistics
 import sys
+import time
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
+
+T = TypeVar("T")
 
 RESULTS = Path(__file__).resolve().parent / "results"
 
@@ -44,3 +49,19 @@ def write_result(name: str, data: dict[str, Any]) -> Path:
     record = {"benchmark": name, "date": dt.datetime.now().isoformat(timespec="seconds"), "command": command, "machine": machine(), **data}
     path.write_text(json.dumps(record, indent=2) + "\n")
     return path
+
+
+def alternating(ways: Sequence[T], rounds: int) -> Iterator[T]:
+    """`ways` in turn for `rounds` rounds, the order reversed every other round (A B, B A, A B, ...), so a drift in the machine's speed falls on each alike."""
+    for i in range(rounds):
+        yield from (ways if i % 2 == 0 else ways[::-1])
+
+
+def median_seconds(ways: dict[str, Callable[[], Any]], rounds: int) -> dict[str, float]:
+    """The median wall seconds of one call of each of `ways`, timed `rounds` times each in `alternating` order."""
+    times: dict[str, list[float]] = {name: [] for name in ways}
+    for name in alternating(list(ways), rounds):
+        start = time.perf_counter()
+        ways[name]()
+        times[name].append(time.perf_counter() - start)
+    return {name: statistics.median(t) for name, t in times.items()}

@@ -26,7 +26,7 @@ import ray
 from ray import tune
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import write_result  # noqa: E402
+from _common import alternating, write_result  # noqa: E402
 
 from rllib_conv.common import config_files  # noqa: E402
 from rllib_conv.common.resources import config_file  # noqa: E402
@@ -61,10 +61,9 @@ def main() -> None:
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
     rows = []
     try:
-        for i in range(args.rounds):
-            for reuse in (True, False) if i % 2 == 0 else (False, True):
-                rows.append(stage(args.pairs, reuse))
-                print(pd.DataFrame(rows).to_string(index=False, float_format="{:.1f}".format), flush=True)
+        for reuse in alternating((True, False), args.rounds):
+            rows.append(stage(args.pairs, reuse))
+            print(pd.DataFrame(rows).to_string(index=False, float_format="{:.1f}".format), flush=True)
     finally:
         tune.TuneConfig = TUNE_CONFIG
         ray.shutdown()

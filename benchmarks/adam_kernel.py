@@ -13,9 +13,8 @@ otherwise). Prints medians and their ratio; writes `benchmarks/results/adam_kern
 from __future__ import annotations
 
 import argparse
-import statistics
+import functools
 import sys
-import time
 from pathlib import Path
 from typing import Any
 
@@ -24,7 +23,7 @@ import ray
 from ray.rllib.core.learner.training_data import TrainingData
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import write_result  # noqa: E402
+from _common import median_seconds, write_result  # noqa: E402
 from train_throughput import _blocks_four, ours  # noqa: E402
 
 import rllib_conv.learners.fused_step as fused_step  # noqa: E402
@@ -52,16 +51,14 @@ def update_times(population: str, repeats: int, kernel: dict[str, str]) -> dict[
         algo.train()  # warm-up: optimizer states exist
         learner, config = algo.learner_group._learner, algo.config
         episodes = algo.env_runner.sample()
-        times: dict[str, list[float]] = {k: [] for k in KERNELS}
-        for i in range(repeats):
-            for name in KERNELS if i % 2 == 0 else KERNELS[::-1]:
-                kernel["now"] = name
-                start = time.perf_counter()
-                learner.update(
-                    training_data=TrainingData(episodes=episodes), num_epochs=config.num_epochs, minibatch_size=config.minibatch_size, shuffle_batch_per_epoch=True, timesteps={}
-                )
-                times[name].append(time.perf_counter() - start)
-        return {name: statistics.median(t) for name, t in times.items()}
+
+        def update_with(name: str) -> Any:
+            kernel["now"] = name
+            return learner.update(
+                training_data=TrainingData(episodes=episodes), num_epochs=config.num_epochs, minibatch_size=config.minibatch_size, shuffle_batch_per_epoch=True, timesteps={}
+            )
+
+        return median_seconds({name: functools.partial(update_with, name) for name in KERNELS}, repeats)
     finally:
         algo.stop()
 

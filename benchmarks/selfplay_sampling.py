@@ -13,16 +13,14 @@ the env steps/s and the ratio; writes `benchmarks/results/selfplay_sampling.json
 from __future__ import annotations
 
 import argparse
-import statistics
 import sys
-import time
 from pathlib import Path
 
 import pandas as pd
 import ray
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import write_result  # noqa: E402
+from _common import median_seconds, write_result  # noqa: E402
 
 from rllib_conv.common import config_files  # noqa: E402
 from rllib_conv.common.resources import config_file  # noqa: E402
@@ -41,13 +39,7 @@ def iteration_times(game: str, iterations: int) -> tuple[dict[str, float], int]:
             cfg = SelfPlayConfig.model_validate(raw).resolve()
             algos[name] = build_selfplay_config(cfg).build_algo()
             algos[name].train()  # warm-up
-        times: dict[str, list[float]] = {name: [] for name in PATHS}
-        for i in range(iterations):
-            for name in list(PATHS) if i % 2 == 0 else list(PATHS)[::-1]:
-                start = time.perf_counter()
-                algos[name].train()
-                times[name].append(time.perf_counter() - start)
-        return {name: statistics.median(t) for name, t in times.items()}, cfg.ppo.rollout_per_partner
+        return median_seconds({name: algo.train for name, algo in algos.items()}, iterations), cfg.ppo.rollout_per_partner
     finally:
         for algo in algos.values():
             algo.stop()

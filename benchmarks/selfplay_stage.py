@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from _common import write_result
+from _common import alternating, write_result
 from reproduce_walltime import REPO, worktree
 
 OLD_COMMIT = "66f3779"  # before self-play sampled through BatchedEnvRunner and Tune reused workers
@@ -65,12 +65,11 @@ def main() -> None:
     work = args.work or Path(tempfile.mkdtemp(prefix="selfplay-stage-"))
     codes = {"old": worktree(args.old_commit, work), "new": REPO}
     rows, folders = [], {"old": [], "new": []}
-    for i in range(args.rounds):
-        for which in ("old", "new") if i % 2 == 0 else ("new", "old"):
-            out = work / f"{which}-{i}"
-            rows.append({"code": which, "wall_s": train(codes[which], args.game, out)})
-            folders[which].append(out)
-            print(pd.DataFrame(rows).to_string(index=False, float_format="{:.1f}".format), flush=True)
+    for i, which in enumerate(alternating(("old", "new"), args.rounds)):
+        out = work / f"{which}-{i // 2}"
+        rows.append({"code": which, "wall_s": train(codes[which], args.game, out)})
+        folders[which].append(out)
+        print(pd.DataFrame(rows).to_string(index=False, float_format="{:.1f}".format), flush=True)
     pairs = len(seat_weights(folders["new"][0]))
     walls = {w: statistics.median(r["wall_s"] for r in rows if r["code"] == w) for w in codes}
     summary = {
