@@ -26,7 +26,7 @@ from analysis.paper import label_name, population_name  # noqa: E402
 from analysis.summaries import curve_band, seed_summary, with_value  # noqa: E402
 
 # Methods in the order of the paper's legends.
-LABEL_ORDER: tuple[str, ...] = ("modular-lam0", "modular-lam0.3", "modular-lam0.5", "modular-lam0.5-hl0.01", "modular-lam0.5-pick", "modular-lam0.5-hl0.01-pick", "beyond-posterior", "lowz-lam0.5", "agg", "no_task_logits", "maml", "oracle", "scratch")
+LABEL_ORDER: tuple[str, ...] = ("modular-lam0", "modular-lam0.3", "modular-lam0.5", "modular-lam0.5-hl0.01", "modular-lam0.5-pick", "modular-lam0.5-hl0.01-pick", "beyond-posterior", "beyond-guarded", "lowz-lam0.5", "agg", "no_task_logits", "maml", "oracle", "scratch")
 PAPER_METHOD = "modular-lam0.5"
 # (colour, line style) per method: no two colours alike, and every method but the paper's and the
 # baselines with a dash pattern of its own. The paper's method, the baselines, the oracle and
@@ -45,6 +45,7 @@ LABEL_STYLES: dict[str, tuple[str, str | tuple]] = {
     "modular-lam0.5-pick": ("#999933", (0, (8, 2))),  # olive, long dashes (not in the paper)
     "modular-lam0.5-hl0.01-pick": ("#888888", (0, (8, 2, 1, 2))),  # grey, long dash-dot (not in the paper)
     "beyond-posterior": ("#661100", "-"),  # dark brown, solid: the adapter beyond the paper
+    "beyond-guarded": ("#CC6677", (0, (4, 2))),  # rose, dashes: the same adapter, its fine-tuning guarded
 }
 OTHER_STYLE: tuple[str, str | tuple] = ("#117733", (0, (1, 3)))  # any label not listed: Tol's green, sparse dots
 TASK_COLOURS = {"train": "0.8", "test": "#E69F00"}  # the paper's grey and orange bars (orange: Okabe-Ito)

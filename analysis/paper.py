@@ -65,6 +65,7 @@ LABEL_NAMES: dict[str, str] = {
     "modular-lam0.5-pick": "ours λ=0.5, adapting from a picked head",
     "modular-lam0.5-hl0.01-pick": "ours λ=0.5 + head penalty, adapting from a picked head",
     "beyond-posterior": "convention posterior (beyond the paper; ours λ=0.5 egos)",
+    "beyond-guarded": "convention posterior, guarded (beyond the paper)",
     "lowz-lam0.5": "ours λ=0.5, low-dim z",
     "agg": "BaselineAgg",
     "no_task_logits": "BaselineModular",

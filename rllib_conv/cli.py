@@ -48,6 +48,7 @@ ADAPT_SET_KEYS = {
     "seed": "seed of the evaluation episodes (0)",
     "max_pack": "curves trained together in one algorithm, for speed (32; each trains as it would alone)",
     "posterior": "--head-init posterior's priors, e.g. --set posterior.recombined=0.5 posterior.novel=0.1 posterior.epsilon=0.05 posterior.handover=0.95",
+    "guard_z": "--guard's margin: standard errors by which the adapting ego's mean return must beat the prior's (0.5)",
 }
 ZEROSHOT_SET_KEYS = {
     "head_steps": "step 1: env steps training the test partners' heads on the old task (bandit 2560, blocks 300000)",
@@ -475,15 +476,16 @@ def _cmd_adapt(args: argparse.Namespace) -> None:
         None if args.head_init == "fresh" else args.head_init,
         args.pick_steps and f"pick-steps={args.pick_steps}",
         "frozen-task" if args.frozen_task else None,
+        "guarded" if args.guard else None,
         None if args.split == "test" else f"{args.split}-split",
         args.population and Path(args.population).stem,
     ]
     extras = [v for v in changed if v] + list(args.partner or []) + list(args.set)
     name = args.name or _name_from(args.runs, extras)
     raw = {"name": name, "runs": args.runs, "split": args.split, "train_task": not args.frozen_task, "head_init": args.head_init}
-    options = {"population": args.population, "partners": args.partner, "method": args.method, "pick_steps": args.pick_steps}
+    options = {"population": args.population, "partners": args.partner, "method": args.method, "pick_steps": args.pick_steps, "guard": args.guard or None}
     raw.update({k: v for k, v in options.items() if v is not None})
-    origins = {("name",): "--name", ("population",): "--population", ("partners",): "--partner", ("pick_steps",): "--pick-steps"}
+    origins = {("name",): "--name", ("population",): "--population", ("partners",): "--partner", ("pick_steps",): "--pick-steps", ("guard",): "--guard"}
     raw, _ = _with_sets(raw, args.set, AdaptConfig, origins, "arguments")
     _note_reuse(Path(args.storage) / f"{ADAPT_PREFIX}{name}", raw)
     from rllib_conv.pipelines.adapt import run_adaptation
@@ -727,6 +729,11 @@ def build_parser() -> argparse.ArgumentParser:
         "(both not in the paper)",
     )
     p.add_argument("--pick-steps", type=_positive_int, help="env steps spent picking the head (default: one update's worth)")
+    p.add_argument(
+        "--guard", action="store_true",
+        help="evaluate the ego as it was before any update until the adapting one is measured better on its own rollouts "
+        "(with --head-init fresh or posterior; not in the paper)",
+    )
     _add_run_args(p)
     _add_log_arg(p)
 

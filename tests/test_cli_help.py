@@ -59,7 +59,7 @@ def test_version(capsys) -> None:
 @pytest.mark.parametrize(
     ("listed", "schema", "options"),
     [
-        (ADAPT_SET_KEYS, AdaptConfig, {"name", "runs", "population", "split", "partners", "method", "train_task", "head_init", "pick_steps"}),
+        (ADAPT_SET_KEYS, AdaptConfig, {"name", "runs", "population", "split", "partners", "method", "train_task", "head_init", "pick_steps", "guard"}),
         (ZEROSHOT_SET_KEYS, ZeroShotConfig, {"name", "runs", "new_population"}),
     ],
     ids=["adapt", "zeroshot"],

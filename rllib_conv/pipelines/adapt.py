@@ -12,7 +12,9 @@ moves in those env steps feed a posterior over which training partner's conventi
 follows; the ego is evaluated playing by it (`convention_posterior.PosteriorPlayer`: on
 blocks, the best response to its prediction of the partner), and once one known
 convention is near certain the ego starts again from the trained ego with that partner's
-head, which PPO fine-tunes from there.
+head, which PPO fine-tunes from there. With `guard: true` (either of the two above) the ego
+is evaluated as it was before any update until the adapting one is measured better on its
+own training rollouts (`fine_tune_guard`); the rows then say whether the prior was kept.
 
 Curves train in packs: one Tune trial (`AdaptTrainable`) holds up to `max_pack` curves of
 egos that differ only in seed and partner, as replicas of one algorithm (each with its own
@@ -59,6 +61,7 @@ from rllib_conv.training.convention_posterior import (
 from rllib_conv.training.ego_setup import EgoSetup, setup_for
 from rllib_conv.training.evaluate import ego_head_partner, load_module, player_return
 from rllib_conv.training.experiment import ExperimentConfig, trial_config
+from rllib_conv.training.fine_tune_guard import FineTuneGuard
 from rllib_conv.training.head_pick import HeadPick, pick_head
 from rllib_conv.training.packs import cluster_cpus, packs, spread_over_cores, write_tables
 from rllib_conv.training.replica_export import copy_replica, replica_module
@@ -169,6 +172,25 @@ class AdaptTrainable(AlgorithmTrainable):
         self._trained: dict[str, Any] = {}  # run -> its trained ego, loaded once for all its curves
         if self.cfg.head_init == "posterior":
             self._start_posteriors()
+        if self.cfg.guard:
+            self._start_guards()
+
+    def _start_guards(self) -> None:
+        """Per curve: the ego before any update (kept for evaluation) and a guard; the runners keep every module's episode returns."""
+        module = learner_module(self.algo)
+        self.prior = [replica_module(module, r, rep) for r, rep in enumerate(self.replicas)]
+        self.guards = [FineTuneGuard(self.cfg.guard_z) for _ in self.curves]
+        self.ego_modules = [replica_id(c.setup.head_for(c.setup.train[0].name), r) for r, c in enumerate(self.curves)]
+        self.algo.env_runner_group.foreach_env_runner(lambda runner: runner.record_module_returns(), local_env_runner=True)
+
+    def _update_guards(self) -> None:
+        """Give each curve's guard its adapting ego's returns in the episodes of the last sample."""
+        returns: dict[str, list[float]] = {}
+        for taken in self.algo.env_runner_group.foreach_env_runner(lambda runner: runner.take_module_returns(), local_env_runner=True):
+            for mid, values in taken.items():
+                returns.setdefault(mid, []).extend(values)
+        for guard, mid in zip(self.guards, self.ego_modules):
+            guard.observe(returns.get(mid, []))
 
     def _trained_ego(self, run: str) -> Any:
         """The trained ego of `run` (its last checkpoint), loaded once per trial."""
@@ -226,7 +248,9 @@ class AdaptTrainable(AlgorithmTrainable):
         push_learner_weights(self.algo)
 
     def _player(self, r: int, plain: Any, head_id: str) -> Any:
-        """The ego of curve r as it is evaluated: its new head, or the posterior player around it."""
+        """The ego of curve r as it is evaluated: its new head (or, guarded and not yet trusted, the ego before any update), or the posterior player around it."""
+        if self.cfg.guard and not self.guards[r].trusted:
+            plain = self.prior[r]  # not yet measured better than the ego before any update
         adapting = ego_head_partner(plain, head_id)  # `player_return` seeds every player it plays
         if self.cfg.head_init != "posterior":
             return adapting
@@ -265,6 +289,8 @@ class AdaptTrainable(AlgorithmTrainable):
                 curve.setup.ego_agent, curve.setup.partner_agent, self.cfg.episodes, seed=self.cfg.seed + self.iteration,
             )
             row = {**curve.label, "steps": self.steps[r], "mean_return": score["mean"], "stderr": score["stderr"], "exact_return": score.get("exact", math.nan)}
+            if self.cfg.guard:
+                row["prior_kept"] = not self.guards[r].trusted
             self.rows.append({**row, **({"picked": self.picked[r]} if self.picked[r] else {})})
             returns.append(score["mean"])
             self.finished[r] = self.steps[r] >= self.total
@@ -283,9 +309,11 @@ class AdaptTrainable(AlgorithmTrainable):
         else:
             with self.timings.measure("iterate"):
                 result = self.algo.train()
-            if self.cfg.head_init == "posterior":
-                with self.timings.measure("evaluate"):
+            with self.timings.measure("evaluate"):
+                if self.cfg.head_init == "posterior":
                     self._update_posteriors()
+                if self.cfg.guard:
+                    self._update_guards()
             self.steps = [self.offset[r] + replica_env_steps(result, r) for r in range(len(self.curves))]
         return {
             "steps": min(self.steps),

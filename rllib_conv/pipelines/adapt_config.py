@@ -4,9 +4,10 @@ from __future__ import annotations
 
 from typing import Any, Literal
 
-from pydantic import Field, PositiveInt, confloat, model_validator
+from pydantic import Field, PositiveFloat, PositiveInt, confloat, model_validator
 
 from rllib_conv.common.config_files import Strict
+from rllib_conv.training.fine_tune_guard import DEFAULT_Z
 from rllib_conv.training.settings import FolderName
 
 Fraction = confloat(gt=0.0, lt=1.0)
@@ -43,7 +44,10 @@ class AdaptConfig(Strict):
     `head_init: posterior` (not in the paper; egos with one head per partner) adapts the
     fresh head as the paper does, and plays by a posterior over which training partner's
     convention the new partner follows, from the partner's moves (`posterior` settings;
-    `rllib_conv.training.convention_posterior`).
+    `rllib_conv.training.convention_posterior`). `guard: true` (not in the paper; with
+    `head_init` fresh or posterior) evaluates the ego as it was before any update until the
+    adapting one is measured better on its own training rollouts, by `guard_z` standard
+    errors (`rllib_conv.training.fine_tune_guard`).
     """
 
     name: FolderName = "adapt"
@@ -56,6 +60,8 @@ class AdaptConfig(Strict):
     head_init: Literal["fresh", "pick", "posterior"] = "fresh"
     pick_steps: PositiveInt | None = None
     posterior: PosteriorSettings = Field(default_factory=PosteriorSettings)
+    guard: bool = False
+    guard_z: PositiveFloat = DEFAULT_Z
     every: PositiveInt | None = None
     steps: PositiveInt | None = None
     episodes: PositiveInt = 200
@@ -71,4 +77,6 @@ class AdaptConfig(Strict):
             raise ValueError(f"head_init {self.head_init!r} needs the trained ego's heads; method 'scratch' starts from a fresh network")
         if self.pick_steps is not None and self.head_init != "pick":
             raise ValueError(f"pick_steps is set but head_init is {self.head_init!r}; set head_init: pick to use it")
+        if self.guard and self.head_init == "pick":
+            raise ValueError("guard: true compares the adapting ego with the ego before any update, but head_init 'pick' replaces that ego after it; use head_init fresh or posterior")
         return self

@@ -6,7 +6,9 @@ sampling itself. This runner keeps the same numbers (env, agent and module steps
 returns, lengths and per-agent / per-module returns over the same smoothing window of
 `metrics_num_episodes_for_smoothing` episodes) in plain counters and windows, and hands them
 to the logger once per `get_metrics` call. Sampling itself is RLlib's, unchanged. It also
-logs each replica's own env steps (`ReplicatedGame.take_moves`), which RLlib has no count of.
+logs each replica's own env steps (`ReplicatedGame.take_moves`), which RLlib has no count of,
+and, once asked to (`record_module_returns`), keeps every finished episode's return per module
+until `take_module_returns` (the fine-tune guard of adaptation reads them).
 """
 
 from __future__ import annotations
@@ -58,8 +60,24 @@ class LeanEnvRunner(MultiAgentEnvRunner):
                 "agents": defaultdict(lambda: deque(maxlen=win)),
                 "agent_len": defaultdict(lambda: deque(maxlen=win)),
                 "modules": defaultdict(lambda: deque(maxlen=win)),
+                "finished": None,  # module ID -> returns of finished episodes, while recording
             }
         return state
+
+    def record_module_returns(self) -> None:
+        """From now on keep each module's return in every finished episode, for `take_module_returns`."""
+        lean = self._lean_state()
+        if lean["finished"] is None:
+            lean["finished"] = defaultdict(list)
+
+    def take_module_returns(self) -> dict[str, list[float]]:
+        """Each module's returns in the episodes finished since the last call (in finishing order), and forget them."""
+        finished = self._lean_state()["finished"]
+        if finished is None:
+            raise RuntimeError("take_module_returns before record_module_returns: this runner keeps no returns")
+        out = {mid: list(values) for mid, values in finished.items()}
+        finished.clear()
+        return out
 
     def _increase_sampled_metrics(self, num_steps: int, next_obs: dict, episode: Any) -> int:
         lean = self._lean_state()
@@ -81,6 +99,8 @@ class LeanEnvRunner(MultiAgentEnvRunner):
             lean["agent_len"][aid].append(value)
         for mid, value in (modules or {}).items():
             lean["modules"][mid].append(value)
+            if lean["finished"] is not None:
+                lean["finished"][mid].append(value)
 
     def _flush(self) -> None:
         """Log what was counted since the last flush, with RLlib's keys and reductions."""

@@ -1,6 +1,7 @@
-"""Section: beyond the paper, the convention-posterior adapter (`beyond-posterior`) beside the paper's method, against its targets.
+"""Section: beyond the paper, the convention-posterior adapter (`beyond-posterior`, and where run its guarded
+variant `beyond-guarded`) beside the paper's method, against its targets.
 
-Its targets (the project's, not the paper's), each judged on paired seed-level intervals:
+Their targets (the project's, not the paper's), each judged on paired seed-level intervals:
 - bandit, Arms 2/3/4, hand-designed and self-play partners: AUC within 0.01 of the Bayes-optimal
   adapter's at the same evaluation points (the whole interval of posterior − Bayes above −0.01);
 - user-study partners: above every other method;
@@ -24,6 +25,8 @@ from analysis.report.verdicts import CONTRADICTED, NOT_SHOWN, SUPPORTED, Differe
 from analysis.summaries import adaptation_auc, bayes_optimal_return, mean_ci, seed_means, seed_summary
 
 POSTERIOR = "beyond-posterior"
+GUARDED = "beyond-guarded"  # the posterior with its fine-tuning guarded (training/fine_tune_guard.py)
+BEYOND = (POSTERIOR, GUARDED)
 WITHIN = ("partner",)
 BAYES_MARGIN = 0.01
 BANDIT_CONTEXTS = 4
@@ -36,38 +39,39 @@ def symmetric_contexts(population: str) -> int | None:
     return int(match.group(1)) if match else None
 
 
-def bayes_gap(curves: pd.DataFrame, symmetric: int) -> Difference:
-    """Posterior AUC − Bayes-optimal AUC per seed (the latter at the same evaluation points), with its interval over seeds."""
+def bayes_gap(curves: pd.DataFrame, symmetric: int, label: str = POSTERIOR) -> Difference:
+    """AUC of `label`'s `curves` − Bayes-optimal AUC per seed (the latter at the same evaluation points), with its interval over seeds."""
     bayes = float(np.mean([bayes_optimal_return(BANDIT_CONTEXTS, symmetric, int(s)) for s in sorted(curves["steps"].unique())]))
     auc = seed_means(adaptation_auc(curves), [], "auc")["auc"].to_numpy() - bayes
-    return Difference(label_name(POSTERIOR), f"Bayes-optimal ({bayes:.3f})", *mean_ci(auc))
+    return Difference(label_name(label), f"Bayes-optimal ({bayes:.3f})", *mean_ci(auc))
 
 
-def _target(ctx: Context, population: str, auc: pd.DataFrame) -> tuple[str, str, str] | None:
-    """(target, verdict, evidence) for one population, or None if it has no target."""
+def _target(ctx: Context, population: str, auc: pd.DataFrame, label: str) -> tuple[str, str, str] | None:
+    """(target, verdict, evidence) of adapter `label` on one population, or None if it has no target."""
     game = ctx.game_of_population(population)
     places = digits(game)
     labels = set(auc["label"])
     symmetric = symmetric_contexts(population)
     if symmetric is not None:
-        gap = bayes_gap(ctx.adaptation[(ctx.adaptation["population"] == population) & (ctx.adaptation["label"] == POSTERIOR)], symmetric)
+        gap = bayes_gap(ctx.adaptation[(ctx.adaptation["population"] == population) & (ctx.adaptation["label"] == label)], symmetric, label)
         met = SUPPORTED if gap.lo > -BAYES_MARGIN else CONTRADICTED if gap.hi < -BAYES_MARGIN else NOT_SHOWN
         return f"AUC within {BAYES_MARGIN} of the Bayes-optimal adapter", met, gap.text(places)
     if population == "bandit-user-study":
-        return "above every method", *beats_all(auc, POSTERIOR, sorted(labels - {POSTERIOR}), "auc", WITHIN, places)
+        return "above every method", *beats_all(auc, label, sorted(labels - set(BEYOND)), "auc", WITHIN, places)
     if game == "blocks" and "selfplay" in population:
-        return "above BaselineAgg and First-Order MAML", *beats_all(auc, POSTERIOR, [x for x in ("agg", "maml") if x in labels], "auc", WITHIN, places)
+        return "above BaselineAgg and First-Order MAML", *beats_all(auc, label, [x for x in ("agg", "maml") if x in labels], "auc", WITHIN, places)
     if game == "blocks":
-        diff = advantage(auc, POSTERIOR, PAPER_METHOD, "auc", WITHIN)
+        diff = advantage(auc, label, PAPER_METHOD, "auc", WITHIN)
         return f"no worse than {label_name(PAPER_METHOD)}", (CONTRADICTED if diff.hi < 0 else SUPPORTED if np.isfinite(diff.lo) else NOT_SHOWN), diff.text(places)
     if game == "hanabi":
-        return "above ours λ=0.5 and BaselineAgg", *beats_all(auc, POSTERIOR, [x for x in (PAPER_METHOD, "agg") if x in labels], "auc", WITHIN, places)
+        return "above ours λ=0.5 and BaselineAgg", *beats_all(auc, label, [x for x in (PAPER_METHOD, "agg") if x in labels], "auc", WITHIN, places)
     return None
 
 
 def beyond_section(ctx: Context) -> str:
-    """The convention posterior beside the paper's method: curves, start/AUC table, and its targets (empty if it was not run)."""
-    if ctx.adaptation.empty or POSTERIOR not in set(ctx.adaptation["label"]):
+    """The adapters beyond the paper beside the paper's method: curves, start/AUC table, and their targets (empty if none was run)."""
+    present = [] if ctx.adaptation.empty else [x for x in BEYOND if x in set(ctx.adaptation["label"])]
+    if not present:
         return ""
     lines = [
         "## Beyond the paper: the convention-posterior adapter",
@@ -78,9 +82,15 @@ def beyond_section(ctx: Context) -> str:
         "posterior's prediction of the partner's moves. Its targets are this project's, judged by "
         "paired seed-level intervals; they never change a verdict on the paper.",
     ]
-    data = ctx.adaptation[ctx.adaptation["population"].isin(ctx.adaptation.loc[ctx.adaptation["label"] == POSTERIOR, "population"].unique())]
+    if GUARDED in present:
+        lines += [
+            "",
+            f"`{GUARDED}` is the same adapter with its fine-tuning guarded: the ego is evaluated as it was before any update "
+            "until the adapting one is measured better on its own training rollouts (`rllib_conv/training/fine_tune_guard.py`).",
+        ]
+    data = ctx.adaptation[ctx.adaptation["population"].isin(ctx.adaptation.loc[ctx.adaptation["label"].isin(present), "population"].unique())]
     auc = adaptation_auc(data)
-    shown = data[data["label"].isin([POSTERIOR, *SHOWN_BESIDE])]
+    shown = data[data["label"].isin([*present, *SHOWN_BESIDE])]
     populations = sorted(shown["population"].unique())
     fig = figures.adaptation_curves(shown, panels=populations)
     lines += ["", ctx.save(fig, "beyond_posterior", figures.band_caption(shown, "Lines: mean over seeds; bands"))]
@@ -90,23 +100,25 @@ def beyond_section(ctx: Context) -> str:
     rows = []
     for population in populations:
         d = digits(ctx.game_of_population(population))
-        for label in [POSTERIOR, *SHOWN_BESIDE]:
+        for label in [*present, *SHOWN_BESIDE]:
             if (population, label) in area.index:
                 rows.append([population_name(population), label_name(label), fmt_summary(start.loc[(population, label)], d), fmt_summary(area.loc[(population, label)], d)])
     lines += ["", md_table(["population", "method", "return at step 0", "AUC"], rows)]
 
     targets = []
     for population in populations:
-        found = _target(ctx, population, auc[auc["population"] == population])
-        if found is not None:
-            targets.append([population_name(population), *found])
+        here = auc[auc["population"] == population]
+        for label in [x for x in present if x in set(here["label"])]:
+            found = _target(ctx, population, here, label)
+            if found is not None:
+                targets.append([population_name(population), label_name(label), *found])
     lines += [
         "",
-        "### Its targets",
+        "### Targets",
         "",
         "Supported: the whole 95% interval over seeds is on the target's side (for the Bayes-optimal target: above −0.01; for "
         "'no worse': not wholly below 0); contradicted: wholly on the other side; not shown otherwise.",
         "",
-        md_table(["population", "target", "verdict", "evidence"], targets),
+        md_table(["population", "adapter", "target", "verdict", "evidence"], targets),
     ]
     return "\n".join(lines)
