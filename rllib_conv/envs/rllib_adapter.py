@@ -97,8 +97,12 @@ class PettingZooMultiAgentEnv(MultiAgentEnv):
         pending = getattr(self, "_pending_rng_state", None)
         if pending is not None:
             # A resumed run: RLlib re-seeds every env on its first reset, but the game should
-            # continue its random stream from where the checkpoint left it.
-            self.env.unwrapped._rng.bit_generator.state = pending
+            # continue its random stream from where the checkpoint left it. A game that makes
+            # its generator at its first reset (Hanabi) has none yet: it gets one to continue.
+            game = self.env.unwrapped
+            if not isinstance(getattr(game, "_rng", None), np.random.Generator):
+                game._rng = np.random.default_rng()
+            game._rng.bit_generator.state = pending
             self._pending_rng_state, seed = None, None
         if self.is_aec:
             self.env.reset(seed=seed, options=options)
