@@ -180,8 +180,18 @@ def _validated(raw: Any, schema: type, origins: dict[tuple[str, ...], str], defa
         try:
             variants.append(schema.model_validate(variant))
         except ValidationError as exc:
-            raise ValueError(_blamed(exc.errors(), origins, default)) from None
+            given = {key: origin for key, origin in origins.items() if _has_path(variant, key)}  # options left unset take no blame
+            raise ValueError(_blamed(exc.errors(), given, default)) from None
     return variants
+
+
+def _has_path(raw: Any, key: tuple[str, ...]) -> bool:
+    """Whether the nested mapping `raw` has a value at `key`."""
+    for part in key:
+        if not isinstance(raw, dict) or part not in raw:
+            return False
+        raw = raw[part]
+    return True
 
 
 def _with_sets(raw: dict[str, Any], sets: Sequence[str], schema: type, origins: dict[tuple[str, ...], str], default: str) -> tuple[dict, list]:

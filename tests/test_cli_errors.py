@@ -70,6 +70,8 @@ CASES = [
     (["adapt", "trial", "--set", "steps=0"], "--set steps=0: steps: Input should be greater than 0"),
     (["adapt", "trial", "--set", "every=[1"], "--set every=[1: not valid YAML"),
     (["adapt", "trial", "--pick-steps", "5"], "--pick-steps: pick_steps is set but head_init is 'fresh'"),
+    (["adapt", "trial", "--head-init", "pick", "--guard"], "arguments with --name, --guard: guard: true compares the adapting ego"),
+    (["adapt", "trial", "--guard", "--set", "guard_z=0"], "--set guard_z=0: guard_z: Input should be greater than 0"),
     (["adapt", "trial", "--name", "a/b"], "--name: must be a non-empty folder name"),
     (["adapt", "trial", "--split", "dev"], "argument --split: invalid choice"),
     (["zeroshot", "trial_badyaml"], "config.yaml' is not valid YAML"),
