@@ -39,7 +39,7 @@ def symmetric_contexts(population: str) -> int | None:
     return int(match.group(1)) if match else None
 
 
-def bayes_gap(curves: pd.DataFrame, symmetric: int, label: str = POSTERIOR) -> Difference:
+def bayes_gap(curves: pd.DataFrame, symmetric: int, label: str) -> Difference:
     """AUC of `label`'s `curves` − Bayes-optimal AUC per seed (the latter at the same evaluation points), with its interval over seeds."""
     bayes = float(np.mean([bayes_optimal_return(BANDIT_CONTEXTS, symmetric, int(s)) for s in sorted(curves["steps"].unique())]))
     auc = seed_means(adaptation_auc(curves), [], "auc")["auc"].to_numpy() - bayes
