@@ -20,7 +20,7 @@ PAPER_METHOD = "modular-lam0.5"
 BASELINES = ("agg", "no_task_logits", "maml")
 
 # Methods of ours that the paper does not have: shown in the tables, left out of its claims.
-EXTENSIONS = ("modular-lam0.5-hl0.01", "modular-lam0.5-pick", "modular-lam0.5-hl0.01-pick", "beyond-posterior")
+EXTENSIONS = ("modular-lam0.5-hl0.01", "modular-lam0.5-pick", "modular-lam0.5-hl0.01-pick", "beyond-posterior", "beyond-guarded")
 
 PAPER_SEEDS = 3  # this project's default seed count for a full reproduction
 CONVERGED = 0.9  # share of the game's maximum score below which a trained ego counts as under-trained

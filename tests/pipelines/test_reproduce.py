@@ -42,16 +42,21 @@ def test_hanabi_plan_compares_ours_with_every_baseline_the_other_games_have() ->
     assert {m.label: m.settings for m in plan.selfplay_methods}["maml"] == {"method": "maml"}
 
 
-def test_blocks_plan_adapts_ours_from_a_picked_head_and_by_the_convention_posterior_too() -> None:
+def test_blocks_plan_adapts_ours_from_a_picked_head_and_by_the_plain_and_guarded_convention_posterior_too() -> None:
     plan = plan_for("blocks")
     assert [(v.label, v.base.label, v.settings) for v in plan.adapt_variants] == [
         ("scratch", "modular-lam0.5", {"method": "scratch"}),
         ("modular-lam0.5-pick", "modular-lam0.5", {"head_init": "pick"}),
         ("modular-lam0.5-hl0.01-pick", "modular-lam0.5-hl0.01", {"head_init": "pick"}),
         ("beyond-posterior", "modular-lam0.5", {"head_init": "posterior"}),
+        ("beyond-guarded", "modular-lam0.5", {"head_init": "posterior", "guard": True}),
     ]
-    # The posterior runs on every game; picking only on blocks; the guarded posterior on Hanabi, where fine-tuning did not pay.
-    assert [v.label for v in plan_for("bandit").adapt_variants] == ["scratch", "beyond-posterior"]
+    # The posterior and the guarded posterior run on every game; picking only on blocks.
+    assert [(v.label, v.settings) for v in plan_for("bandit").adapt_variants] == [
+        ("scratch", {"method": "scratch"}),
+        ("beyond-posterior", {"head_init": "posterior"}),
+        ("beyond-guarded", {"head_init": "posterior", "guard": True}),
+    ]
     assert [(v.label, v.settings) for v in plan_for("hanabi").adapt_variants][1:] == [
         ("beyond-posterior", {"head_init": "posterior"}),
         ("beyond-guarded", {"head_init": "posterior", "guard": True}),
@@ -59,7 +64,7 @@ def test_blocks_plan_adapts_ours_from_a_picked_head_and_by_the_convention_poster
     # Adapt-only variants train nothing; each runs where its base egos are in the (narrowed) plan.
     narrowed = Reproduction(narrow(plan, ["blocks-perm", "blocks-selfplay"], ["agg"]), Path("unused"))
     trained = [f"{p}__{m}" for p in ("blocks-perm", "blocks-selfplay") for m in ("modular-lam0.5", "agg")]
-    assert narrowed.stage_experiments("adapt") == [*trained, *(f"{p}__{v}" for p in ("blocks-perm", "blocks-selfplay") for v in ("scratch", "modular-lam0.5-pick", "beyond-posterior"))]
+    assert narrowed.stage_experiments("adapt") == [*trained, *(f"{p}__{v}" for p in ("blocks-perm", "blocks-selfplay") for v in ("scratch", "modular-lam0.5-pick", "beyond-posterior", "beyond-guarded"))]
     full = Reproduction(plan_for("blocks"), Path("unused")).stage_experiments("adapt")
     assert "blocks-selfplay__modular-lam0.5-hl0.01-pick" in full and "blocks-perm__modular-lam0.5-hl0.01-pick" in full
 
