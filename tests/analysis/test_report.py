@@ -302,6 +302,10 @@ def test_both_adapters_beyond_the_paper_are_judged_on_hanabi(tmp_path: Path) -> 
     assert f"| Hanabi (self-play) | {posterior} | above ours λ=0.5 and BaselineAgg | not shown |" in beyond
     assert f"| Hanabi (self-play) | {guarded} | above ours λ=0.5 and BaselineAgg | supported |" in beyond
     assert f"{guarded} − BaselineAgg +0.250 [+0.250, +0.250] (n=3)" in beyond
+    # Both are named as not in the paper where the report says what it found.
+    found = text.split("## What was found")[1].split("## Beyond the paper")[0]
+    assert f"{guarded} (`beyond-guarded`) is not in the paper" in found
+    assert f"{posterior} (`beyond-posterior`) is not in the paper" in found
 
 
 def test_empty_root_and_recorded_sessions(tmp_path: Path) -> None:
