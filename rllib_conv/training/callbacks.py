@@ -1,12 +1,14 @@
-"""Tune callbacks of every pipeline: a progress line per result, a live table of trials, result files kept free of repeats."""
+"""Tune callbacks of every pipeline: a progress line per result, a live table of trials, result files kept free of repeats and whole across a kill."""
 
 from __future__ import annotations
 
+import csv
 import json
 import math
+import shutil
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 from ray.tune import Callback
 
@@ -244,21 +246,24 @@ class TrimRerunResults(Callback):
         return [folder / name for folder in folders for name in PROGRESS_FILES if (folder / name).is_file()]
 
     @staticmethod
-    def _logged(path: Path) -> list[int]:
+    def _row_iterations(path: Path) -> list[int | None]:
+        """The training iteration of each row of `path` (after a CSV's header), None for a row cut short by a kill."""
+        lines = path.read_text().splitlines()
         if path.suffix == ".csv":
-            rows = path.read_text().splitlines()
-            if len(rows) < 2:
+            if len(lines) < 2:
                 return []
-            column = rows[0].split(",").index("training_iteration")
-            return [int(float(r.split(",")[column])) for r in rows[1:] if r]
-        return [json.loads(line)["training_iteration"] for line in path.read_text().splitlines() if line.strip()]
+            column = next(csv.reader(lines[:1])).index("training_iteration")
+            return [_parsed(lambda: int(float(row[column]))) for row in csv.reader(lines[1:])]
+        return [_parsed(lambda: int(json.loads(line)["training_iteration"])) for line in lines]
+
+    def _logged(self, path: Path) -> list[int]:
+        return [it for it in self._row_iterations(path) if it is not None]
 
     def _trim(self, path: Path, before: int) -> None:
         lines = path.read_text().splitlines(keepends=True)
-        if path.suffix == ".csv":
-            keep = lines[:1] + [line for line, it in zip(lines[1:], self._logged(path)) if it < before]
-        else:
-            keep = [line for line in lines if line.strip() and json.loads(line)["training_iteration"] < before]
+        header = lines[:1] if path.suffix == ".csv" else []
+        rows = lines[len(header):]
+        keep = header + [line for line, it in zip(rows, self._row_iterations(path)) if it is not None and it < before]
         tmp = path.with_suffix(path.suffix + ".tmp")
         tmp.write_text("".join(keep))
         tmp.replace(path)
@@ -271,3 +276,45 @@ class TrimRerunResults(Callback):
             for path in self._files(trial):
                 self._trim(path, before=current)
         self._last[trial.trial_id] = current
+
+
+def _parsed(read: Callable[[], int]) -> int | None:
+    try:
+        return read()
+    except (ValueError, IndexError, KeyError, TypeError):
+        return None
+
+
+CHECKPOINTED = ".checkpointed"  # suffix of a trial's result files as they were at its last checkpoint
+
+
+class KeepLogsAtCheckpoints(Callback):
+    """Copy each trial's result files into its storage folder, atomically, whenever it saves a checkpoint.
+
+    Tune writes a trial's progress.csv and result.json in a staging folder on the driver and copies
+    that folder to storage in the background every so often, file over file. A run killed during
+    that copy leaves torn files in storage, and the trial resumed from its checkpoint lost the rows
+    before it (seen once in the SIGKILL sweep test, under load). `restore_checkpointed_logs` puts
+    these copies back before a resume; `TrimRerunResults` drops the rows re-run after the checkpoint.
+    Works on local (or mounted) storage.
+    """
+
+    def on_checkpoint(self, iteration: int, trials: list, trial: Any, checkpoint: Any, **info: Any) -> None:
+        staging, storage = Path(trial.local_path), Path(trial.path)
+        if staging == storage or not storage.is_dir():
+            return
+        for name in PROGRESS_FILES:
+            if (staging / name).is_file():
+                _copy_atomically(staging / name, storage / f"{name}{CHECKPOINTED}")
+
+
+def restore_checkpointed_logs(experiment: Path) -> None:
+    """Before the Tune experiment at `experiment` resumes: each trial's result files become those of its last checkpoint (`KeepLogsAtCheckpoints`)."""
+    for copy in experiment.glob(f"*/*{CHECKPOINTED}"):
+        _copy_atomically(copy, copy.with_name(copy.name.removesuffix(CHECKPOINTED)))
+
+
+def _copy_atomically(source: Path, target: Path) -> None:
+    tmp = target.with_name(target.name + ".tmp")
+    shutil.copyfile(source, tmp)
+    tmp.replace(target)

@@ -24,7 +24,7 @@ from ray.tune.utils import flatten_dict
 from rllib_conv.common.config_files import GRID_KEY
 from rllib_conv.common.run_folders import SPEC_FILE
 from rllib_conv.common.tracking import LOGGERS
-from rllib_conv.training.callbacks import PROGRESS, TrimRerunResults
+from rllib_conv.training.callbacks import PROGRESS, KeepLogsAtCheckpoints, TrimRerunResults, restore_checkpointed_logs
 
 # A stage's Tune run (`job_param_space`): every trial's config is one job under this key.
 JOB_KEY = "job"
@@ -180,8 +180,9 @@ def fit(
         raise ValueError(f"nothing to resume: {str(path)!r} holds no Tune experiment (run without --resume to start it)")
     check_spec(path, spec)
     init_ray(address)
-    callbacks = [TrimRerunResults(), progress if isinstance(progress, Callback) else PROGRESS[progress](), *logger_callbacks(loggers, path, name)]
+    callbacks = [TrimRerunResults(), KeepLogsAtCheckpoints(), progress if isinstance(progress, Callback) else PROGRESS[progress](), *logger_callbacks(loggers, path, name)]
     if restorable:
+        restore_checkpointed_logs(path)
         tuner = tune.Tuner.restore(str(path), trainable=trainable, param_space=param_space, resume_unfinished=True, resume_errored=True)
         # tuner.pkl holds the first run's callbacks; this run's progress choice (and fixes) win.
         tuner._local_tuner.get_run_config().callbacks = callbacks
