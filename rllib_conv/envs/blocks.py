@@ -59,10 +59,18 @@ def encode_observation(goal: np.ndarray, grid: np.ndarray, move: int, sees_goal:
 
 def decode_observation(obs: np.ndarray) -> dict[str, Any]:
     """Invert `encode_observation`: return `goal` (4 codes, HIDDEN if unseen), `grid`, `move`."""
+    seen = decode_observations(obs)
+    seen["move"] = int(seen["move"])
+    return seen
+
+
+def decode_observations(obs: np.ndarray) -> dict[str, np.ndarray]:
+    """`decode_observation` on rows [..., 35] at once: `goal` and `grid` [..., 4], `move` [...]."""
     obs = np.asarray(obs)
-    goal = obs[: NUM_CELLS * 4].reshape(NUM_CELLS, 4).argmax(axis=1)
-    grid = obs[NUM_CELLS * 4 : NUM_CELLS * 7].reshape(NUM_CELLS, 3).argmax(axis=1)
-    move = int(obs[NUM_CELLS * 7 :].argmax())
+    lead = obs.shape[:-1]
+    goal = obs[..., : NUM_CELLS * 4].reshape(*lead, NUM_CELLS, 4).argmax(axis=-1)
+    grid = obs[..., NUM_CELLS * 4 : NUM_CELLS * 7].reshape(*lead, NUM_CELLS, 3).argmax(axis=-1)
+    move = obs[..., NUM_CELLS * 7 :].argmax(axis=-1)
     return {"goal": goal, "grid": grid, "move": move}
 
 

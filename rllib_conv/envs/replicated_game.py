@@ -63,7 +63,10 @@ class ReplicatedGame(MultiAgentEnv):
         self.replica_seeds = [int(s) for s in config.get("replica_seeds", [0])]
         self.base_seed = int(config.get("base_seed", 0))
         self.copies = [PettingZooMultiAgentEnv(factory(**dict(config.get("game_config", {})))) for _ in self.replica_seeds]
-        self.possible_agents = [replica_agent(a, r) for r, env in enumerate(self.copies) for a in env.possible_agents]
+        # Agent IDs per copy and back, made once: a step names every agent of every copy.
+        self._ids = [{a: replica_agent(a, r) for a in env.possible_agents} for r, env in enumerate(self.copies)]
+        self._where = {aid: (a, r) for r, ids in enumerate(self._ids) for a, aid in ids.items()}
+        self.possible_agents = [aid for ids in self._ids for aid in ids.values()]
         self.agents = list(self.possible_agents)
         self.observation_spaces = {replica_agent(a, r): env.observation_spaces[a] for r, env in enumerate(self.copies) for a in env.possible_agents}
         self.action_spaces = {replica_agent(a, r): env.action_spaces[a] for r, env in enumerate(self.copies) for a in env.possible_agents}
@@ -76,15 +79,16 @@ class ReplicatedGame(MultiAgentEnv):
         obs = {}
         for r, env in enumerate(self.copies):
             o, _ = env.reset(seed=None if seed is None else mix(self.replica_seeds[r], seed - self.base_seed), options=options)
-            obs.update({replica_agent(a, r): v for a, v in o.items()})
+            ids = self._ids[r]
+            obs.update({ids[a]: v for a, v in o.items()})
         self._done = [False] * len(self.copies)
-        self.agents = [replica_agent(a, r) for r, env in enumerate(self.copies) for a in env.agents]
+        self.agents = [self._ids[r][a] for r, env in enumerate(self.copies) for a in env.agents]
         return obs, {}
 
     def step(self, action_dict: dict[str, Any]) -> tuple[dict, dict, dict, dict, dict]:
         per_copy: list[dict[str, Any]] = [{} for _ in self.copies]
         for agent_id, action in action_dict.items():
-            agent, r = split_agent(agent_id)
+            agent, r = self._where[agent_id]
             per_copy[r][agent] = action
         out: tuple[dict, ...] = ({}, {}, {}, {})
         for r, env in enumerate(self.copies):
@@ -93,14 +97,15 @@ class ReplicatedGame(MultiAgentEnv):
             results = env.step(per_copy[r])[:4]
             self._moves[r] += 1
             ended = bool(results[2].get("__all__") or results[3].get("__all__"))
+            ids = self._ids[r]
             for merged, part in zip(out, results):
-                merged.update({replica_agent(a, r): v for a, v in part.items() if a != "__all__"})
+                merged.update({ids[a]: v for a, v in part.items() if a != "__all__"})
             self._done[r] = ended
         obs, rewards, terms, truncs = out
         done = all(self._done)
         terms["__all__"] = done and not any(truncs.values())
         truncs["__all__"] = done and not terms["__all__"]
-        self.agents = [replica_agent(a, r) for r, env in enumerate(self.copies) if not self._done[r] for a in env.agents]
+        self.agents = [self._ids[r][a] for r, env in enumerate(self.copies) if not self._done[r] for a in env.agents]
         if not self.agents:  # RLlib expects every agent of a step's result to be listed
             self.agents = [a for a in obs]
         return obs, rewards, terms, truncs, {}

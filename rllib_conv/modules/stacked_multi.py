@@ -22,7 +22,7 @@ from ray.rllib.core.columns import Columns
 from ray.rllib.core.rl_module.apis.value_function_api import ValueFunctionAPI
 from ray.rllib.core.rl_module.torch import TorchRLModule
 
-from rllib_conv.modules.ego_stack import EgoStack, pad_rows, unpad
+from rllib_conv.modules.ego_stack import HEAD_POLICY, EgoStack, pad_rows, unpad
 from rllib_conv.modules.shared_wiring import SharedWiringMultiRLModule
 from rllib_conv.modules.task_module import split_obs
 
@@ -64,7 +64,7 @@ class HeadView(TorchRLModule, ValueFunctionAPI):
 
     def _forward(self, batch: dict[str, Any], **kwargs: Any) -> dict[str, Any]:
         task, _, mask = self._rows(batch)
-        out = self.stack._heads("head_pi", ("pi.0", "pi.2", "pi.4"), task.z, torch.tensor([self.index]))
+        out = self.stack._heads("head_pi", HEAD_POLICY, task.z, torch.tensor([self.index]))
         logits = self.stack.policy_logits(out[0], task.logits[0], mask)
         return {Columns.ACTION_DIST_INPUTS: logits}
 
@@ -122,7 +122,7 @@ class StackedEgoMultiRLModule(SharedWiringMultiRLModule):
         obs, sizes = pad_rows([torch.cat([rows[mid][0] for mid in per_replica[r]]) for r in replicas])
         has_mask = all(rows[mid][1] is not None for mid in order)
         mask = pad_rows([torch.cat([rows[mid][1] for mid in per_replica[r]]) for r in replicas])[0] if has_mask else None
-        task = stack.task_forward(obs, mask, torch.tensor(replicas))
+        task = stack.task_forward(obs, mask, _subset(replicas, stack.replicas))
         z_parts, l_parts, m_parts, lengths = [], [], [], {}
         for g, r in enumerate(replicas):
             start = 0
@@ -134,7 +134,7 @@ class StackedEgoMultiRLModule(SharedWiringMultiRLModule):
                 lengths[mid] = n
                 start += n
         z, head_sizes = pad_rows(z_parts)
-        head_out = stack._heads("head_pi", ("pi.0", "pi.2", "pi.4"), z, torch.tensor([views[mid].index for mid in order]))
+        head_out = stack._heads("head_pi", HEAD_POLICY, z, _subset([views[mid].index for mid in order], stack.replicas * stack.heads))
         logits_pad = stack.policy_logits(head_out, pad_rows(l_parts)[0], None if mask is None else pad_rows(m_parts)[0])
         logits = dict(zip(order, unpad(logits_pad, head_sizes)))
         if not explore:
@@ -202,3 +202,12 @@ class StackedEgoMultiRLModule(SharedWiringMultiRLModule):
             out[mid] = {Columns.ACTION_DIST_INPUTS: stacked.logits[v.replica, v.head, :n], Columns.EMBEDDINGS: stacked.values[v.replica, v.head, :n]}
         out[STACK_ID] = {STACKED: stacked}
         return out
+
+
+def _subset(index: list[int], n: int) -> torch.Tensor | None:
+    """`index` as the tensor that picks those of `n` stacked weights, or None when it is all of them in order.
+
+    None lets the batched layers use the stacked weights as they are, not a copy of them
+    (a copy of every 500x500 layer per acting step on Hanabi).
+    """
+    return None if index == list(range(n)) else torch.tensor(index)

@@ -22,6 +22,7 @@ from rllib_conv.envs.blocks import (
     RED,
     block_cell,
     decode_observation,
+    decode_observations,
 )
 from rllib_conv.partners.base import Partner
 from rllib_conv.partners.kinds import register_kind
@@ -56,11 +57,16 @@ class PermutationPartner(Partner):
         self.perm = _check_permutation(perm)
 
     def act(self, observation: np.ndarray, action_mask: np.ndarray) -> int:
-        obs = decode_observation(observation)
-        red = block_cell(obs["grid"], RED)
-        if obs["move"] == 1 and red is not None:
-            return self.perm[red]
-        return PASS
+        return int(self.act_batch(np.asarray(observation)[None], np.asarray(action_mask)[None])[0])
+
+    def act_batch(self, observations: np.ndarray, action_masks: np.ndarray) -> np.ndarray:
+        # Every row at once: this partner answers every training step of a blocks ego.
+        seen = decode_observations(observations)
+        red = seen["grid"] == RED
+        actions = np.full(len(red), PASS, dtype=np.int64)
+        follow = (seen["move"] == 1) & red.any(axis=-1)
+        actions[follow] = np.asarray(self.perm, dtype=np.int64)[red.argmax(axis=-1)[follow]]
+        return actions
 
     def params(self) -> dict[str, Any]:
         return {"perm": list(self.perm)}

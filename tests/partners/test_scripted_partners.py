@@ -135,3 +135,29 @@ def test_permutation_partner_passes_without_a_signal() -> None:
     env.step(PASS)
     obs = env.observe("player_1")
     assert PermutationPartner("p", [1, 0, 3, 2]).act(obs["observation"], obs["action_mask"]) == PASS
+
+
+def test_permutation_partner_answers_every_blue_observation_by_its_rule_in_one_batch() -> None:
+    # Every grid with at most one red and one blue block, at every move, goal hidden: the rows a
+    # permutation partner meets. By the rule: on move 1 with red on cell c, perm[c]; else pass.
+    from rllib_conv.envs.blocks import BLUE, EMPTY, HIDDEN, NUM_MOVES, RED, encode_observation
+
+    perm = (2, 3, 1, 0)
+    rows, expected = [], []
+    for red in [None, 0, 1, 2, 3]:
+        for blue in [None, 0, 1, 2, 3]:
+            if red is not None and red == blue:
+                continue
+            grid = np.full(4, EMPTY)
+            if red is not None:
+                grid[red] = RED
+            if blue is not None:
+                grid[blue] = BLUE
+            for move in range(NUM_MOVES):
+                rows.append(encode_observation(np.full(4, HIDDEN), grid, move, sees_goal=False))
+                expected.append(perm[red] if move == 1 and red is not None else PASS)
+    partner = PermutationPartner("p", list(perm))
+    masks = np.ones((len(rows), 6), dtype=np.int8)
+    assert partner.act_batch(np.stack(rows), masks).tolist() == expected
+    assert [partner.act(o, m) for o, m in zip(rows, masks)] == expected
+    assert partner.act_batch(np.zeros((0, len(rows[0])), dtype=np.float32), masks[:0]).tolist() == []
