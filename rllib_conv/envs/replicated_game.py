@@ -68,8 +68,8 @@ class ReplicatedGame(MultiAgentEnv):
         self._where = {aid: (a, r) for r, ids in enumerate(self._ids) for a, aid in ids.items()}
         self.possible_agents = [aid for ids in self._ids for aid in ids.values()]
         self.agents = list(self.possible_agents)
-        self.observation_spaces = {replica_agent(a, r): env.observation_spaces[a] for r, env in enumerate(self.copies) for a in env.possible_agents}
-        self.action_spaces = {replica_agent(a, r): env.action_spaces[a] for r, env in enumerate(self.copies) for a in env.possible_agents}
+        self.observation_spaces = {aid: self.copies[r].observation_spaces[a] for aid, (a, r) in self._where.items()}
+        self.action_spaces = {aid: self.copies[r].action_spaces[a] for aid, (a, r) in self._where.items()}
         self.observation_space = gym.spaces.Dict(self.observation_spaces)
         self.action_space = gym.spaces.Dict(self.action_spaces)
         self._done = [False] * len(self.copies)
