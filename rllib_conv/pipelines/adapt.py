@@ -32,6 +32,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -68,7 +69,7 @@ from rllib_conv.training.replica_export import copy_replica, replica_module
 from rllib_conv.training.replica_steps import replica_env_steps
 from rllib_conv.training.settings import MappingSettings
 from rllib_conv.training.trainable import AlgorithmTrainable
-from rllib_conv.training.tuning import fit, job_param_space, spec_name
+from rllib_conv.training.tuning import fit, job_param_space, job_units, spec_name
 from rllib_conv.training.weights import learner_module, push_learner_weights
 
 CURVES_FILE = "curves.csv"  # a finished pack's curves, in its trial folder
@@ -382,7 +383,7 @@ def run_adaptations(
     jobs = spread_over_cores(jobs, "curves", cpus)
     spec: Any = raws[0] if len(raws) == 1 else {"experiments": names, "configs": raws}
     name = f"{ADAPT_PREFIX}{cfgs[0].name}" if len(raws) == 1 else spec_name(STAGE_PREFIX, spec)
-    progress = StageProgress(label) if label else "lines"
+    progress = StageProgress(label, units=partial(job_units, key="curves")) if label else "lines"
     results = fit(AdaptTrainable, spec, job_param_space(jobs), name, storage, address, tune.CheckpointConfig(checkpoint_at_end=False), progress, loggers=loggers)
     return write_tables(results, cfgs, CURVES_FILE, CURVE_COLUMNS, ["run", "partner", "steps"], Path(out), "adaptation")
 

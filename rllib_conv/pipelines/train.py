@@ -18,6 +18,7 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Sequence
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -43,7 +44,7 @@ from rllib_conv.training.packs import cluster_cpus, spread_over_cores
 from rllib_conv.training.replica_export import export_replica, replica_module
 from rllib_conv.training.replica_steps import replica_env_steps
 from rllib_conv.training.trainable import AlgorithmTrainable
-from rllib_conv.training.tuning import check_spec, fit, job_param_space, spec_name, to_param_space
+from rllib_conv.training.tuning import check_spec, fit, job_param_space, job_units, spec_name, to_param_space
 from rllib_conv.training.weights import learner_module
 
 REPLICA_SEEDS = "replica_seeds"  # a trial config's seeds, trained together as replicas
@@ -234,7 +235,7 @@ def train_stage(
     todo = spread_over_cores(todo, REPLICA_SEEDS, cluster_cpus(address), first_key="seed")
     name = spec_name(TRAIN_STAGE_PREFIX, {"experiments": names, "jobs": jobs})
     spec = {"experiments": names, "jobs": jobs}
-    results = fit(EgoTrainable, spec, job_param_space(todo), name, storage, address, _checkpoints(first), StageProgress(label), loggers=loggers)
+    results = fit(EgoTrainable, spec, job_param_space(todo), name, storage, address, _checkpoints(first), StageProgress(label, units=partial(job_units, key=REPLICA_SEEDS)), loggers=loggers)
     if results.errors:
         raise RuntimeError(f"{len(results.errors)} training trial(s) failed; see {storage / name}")
     return sorted({Path(job[EXPORT_KEY]).parent.name for job in todo})

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -48,7 +49,7 @@ from rllib_conv.training.replica_export import replica_module
 from rllib_conv.training.replica_steps import replica_env_steps
 from rllib_conv.training.settings import MappingSettings
 from rllib_conv.training.trainable import AlgorithmTrainable
-from rllib_conv.training.tuning import fit, job_param_space, spec_name
+from rllib_conv.training.tuning import fit, job_param_space, job_units, spec_name
 from rllib_conv.training.weights import learner_module, push_learner_weights
 
 RESULT_COLUMNS = ["run", "method", "lam", "seed", "partner", "mean_return", "stderr", "exact_return"]
@@ -238,7 +239,7 @@ def run_zeroshots(
     jobs = spread_over_cores(jobs, "runs", cpus)
     spec: Any = raws[0] if len(raws) == 1 else {"experiments": names, "configs": raws}
     name = f"{ZEROSHOT_PREFIX}{cfgs[0].name}" if len(raws) == 1 else spec_name(f"{ZEROSHOT_PREFIX}stage-", spec)
-    progress = StageProgress(label) if label else "lines"
+    progress = StageProgress(label, units=partial(job_units, key="runs")) if label else "lines"
     results = fit(ZeroShotTrainable, spec, job_param_space(jobs), name, storage, address, tune.CheckpointConfig(checkpoint_at_end=False), progress, loggers=loggers)
     return write_tables(results, cfgs, RESULTS_FILE, RESULT_COLUMNS, ["run", "partner"], Path(out), "zero-shot")
 

@@ -148,10 +148,14 @@ class StageProgress(_ThrottledPrint):
     counts at one core's speed, not the whole stage's. Steps played before a resume do not
     count towards the rate, and a resumed trial that starts again from zero (an adaptation
     pack) counts from zero.
+
+    `units` (optional) says how many units (seeds, curves, runs) a trial's config runs
+    together: a trial not yet started then counts as the known steps per unit times its own
+    units, so a stage cut into trials of different sizes shows its true total.
     """
 
-    def __init__(self, label: str, every: float = 30.0, log: Any = None) -> None:
-        self.label, self.every, self.log = label, every, log
+    def __init__(self, label: str, every: float = 30.0, log: Any = None, units: Callable[[dict[str, Any]], int] | None = None) -> None:
+        self.label, self.every, self.log, self.units = label, every, log, units
         self._start = time.monotonic()
         self._last_print = self._start
         self._latest: dict[str, dict[str, Any]] = {}
@@ -163,10 +167,15 @@ class StageProgress(_ThrottledPrint):
     def _result(self, trial: Any) -> dict[str, Any]:
         return self._latest.get(trial.trial_id) or getattr(trial, "last_result", None) or {}
 
+    def _size(self, trial: Any) -> int:
+        """The units `trial` runs (1 without `units`)."""
+        return self.units(trial.config) if self.units else 1
+
     def _work(self, trials: list) -> tuple[list[float], list[float], float]:
-        """Env steps left for the running trials and for the waiting ones (unstarted at the mean known total), and the steps played."""
-        known = [r for t in trials if STEPS_DONE in (r := self._result(t))]
-        mean = sum(float(r.get(STEPS_TOTAL, r[STEPS_DONE])) for r in known) / len(known) if known else 0.0
+        """Env steps left for the running trials and for the waiting ones (unstarted at the known steps per unit), and the steps played."""
+        known = [(t, r) for t in trials if STEPS_DONE in (r := self._result(t))]
+        units = sum(self._size(t) for t, _ in known)
+        per_unit = sum(float(r.get(STEPS_TOTAL, r[STEPS_DONE])) for _, r in known) / units if known else 0.0
         running, waiting, done = [], [], 0.0
         for trial in trials:
             result = self._result(trial)
@@ -174,7 +183,7 @@ class StageProgress(_ThrottledPrint):
             done += played
             if trial.status == "TERMINATED":
                 continue
-            left = max(0.0, float(result.get(STEPS_TOTAL, mean)) - played)
+            left = max(0.0, float(result.get(STEPS_TOTAL, per_unit * self._size(trial))) - played)
             (running if trial.status == "RUNNING" else waiting).append(left)
         return running, waiting, done
 

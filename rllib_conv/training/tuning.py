@@ -114,6 +114,14 @@ def trial_job(config: dict[str, Any]) -> dict[str, Any]:
     return config[JOB_KEY] if JOB_KEY in config else config
 
 
+def job_units(config: dict[str, Any], key: str) -> int:
+    """How many units (seeds, curves, runs) the trial with `config` runs together: the length of its job's `key`.
+
+    For `StageProgress(units=partial(job_units, key=...))`.
+    """
+    return len(trial_job(config)[key])
+
+
 def spec_name(prefix: str, spec: Any) -> str:
     """A Tune experiment name for `spec` that only the same spec gets again: `<prefix><12 hex digits>`."""
     digest = hashlib.sha1(json.dumps(spec, sort_keys=True, default=str).encode()).hexdigest()

@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import pickle
+from functools import partial
 from types import SimpleNamespace
 
 from rllib_conv.training import callbacks
 from rllib_conv.training.callbacks import STEPS_DONE, STEPS_TOTAL, ProgressTable
+from rllib_conv.training.tuning import JOB_KEY, job_param_space, job_units
 
 
 def _trial(trial_id, status, params, result):
@@ -69,3 +72,30 @@ def test_stage_eta_counts_a_last_trial_alone_on_one_core(monkeypatch) -> None:
     for t in trials:
         t.status = "TERMINATED"
     assert progress.eta_seconds(trials) == 0.0
+
+
+def test_stage_total_counts_waiting_trials_by_their_units(monkeypatch) -> None:
+    # 15 seeds of 1000 steps cut into trials of 5, 5, 3 and 2 seeds, the first two running: 2 000 played.
+    # Known: 10 000 steps for 10 seeds, 1 000 a seed; the waiting trials hold 3 and 2 seeds: 15 000 in
+    # all (counting them at the mean trial's 5 000 would say 20 000).
+    now = [0.0]
+    monkeypatch.setattr(callbacks.time, "monotonic", lambda: now[0])
+    sizes = {"a": 5, "b": 5, "c": 3, "d": 2}
+    progress = callbacks.StageProgress("[blocks] train", every=1e9, log=lambda line: None, units=lambda config: config["seeds"])
+    trials = [_trial(t, "RUNNING" if t in "ab" else "PENDING", {}, {}) for t in sizes]
+    for t in trials:
+        t.config = {"seeds": sizes[t.trial_id]}
+    now[0] = 10.0
+    for t in trials[:2]:
+        progress.on_trial_result(1, trials, t, {STEPS_DONE: 1000, STEPS_TOTAL: 5000})
+    assert progress.line(trials).startswith("[blocks] train: 0/4 trials done, 2.0k/15.0k env steps")
+    for t in trials[:2]:
+        t.last_result = {STEPS_DONE: 1000, STEPS_TOTAL: 5000}
+    assert callbacks.StageProgress("[blocks] train").line(trials).startswith("[blocks] train: 0/4 trials done, 2.0k/20.0k env steps")
+
+
+def test_a_stage_counts_units_in_its_trials_jobs_and_its_progress_pickles_with_tunes_state() -> None:
+    space = job_param_space([{"index": 0, "curves": [1, 2, 3]}, {"index": 1, "curves": [4]}])
+    assert [job_units({JOB_KEY: job}, "curves") for job in space[JOB_KEY]["grid_search"]] == [3, 1]
+    progress = pickle.loads(pickle.dumps(callbacks.StageProgress("[bandit] adapt", units=partial(job_units, key="curves"))))
+    assert progress.units({JOB_KEY: {"curves": [1, 2]}}) == 2
