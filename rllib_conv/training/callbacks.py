@@ -255,9 +255,8 @@ class TrimRerunResults(Callback):
         return [folder / name for folder in folders for name in PROGRESS_FILES if (folder / name).is_file()]
 
     @staticmethod
-    def _row_iterations(path: Path) -> list[int | None]:
-        """The training iteration of each row of `path` (after a CSV's header), None for a row cut short by a kill."""
-        lines = path.read_text().splitlines()
+    def _row_iterations(path: Path, lines: list[str]) -> list[int | None]:
+        """The training iteration of each row of `lines`, the text of `path` (after a CSV's header), None for a row cut short by a kill."""
         if path.suffix == ".csv":
             if len(lines) < 2:
                 return []
@@ -266,13 +265,13 @@ class TrimRerunResults(Callback):
         return [_parsed(lambda: int(json.loads(line)["training_iteration"])) for line in lines]
 
     def _logged(self, path: Path) -> list[int]:
-        return [it for it in self._row_iterations(path) if it is not None]
+        return [it for it in self._row_iterations(path, path.read_text().splitlines()) if it is not None]
 
     def _trim(self, path: Path, before: int) -> None:
         lines = path.read_text().splitlines(keepends=True)
         header = lines[:1] if path.suffix == ".csv" else []
         rows = lines[len(header):]
-        keep = header + [line for line, it in zip(rows, self._row_iterations(path)) if it is not None and it < before]
+        keep = header + [line for line, it in zip(rows, self._row_iterations(path, lines)) if it is not None and it < before]
         tmp = path.with_suffix(path.suffix + ".tmp")
         tmp.write_text("".join(keep))
         tmp.replace(path)
