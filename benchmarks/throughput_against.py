@@ -22,7 +22,7 @@ import pandas as pd
 import ray
 from _common import alternating, write_result
 from reproduce_walltime import REPO, worktree
-from train_throughput import _blocks_four, ours, steps_per_second
+from train_throughput import ours, population_of, steps_per_second
 
 HERE = Path(__file__).resolve()
 GAMES = ("bandit", "blocks", "hanabi")
@@ -32,8 +32,7 @@ def measure(game: str, seconds: float) -> float:
     """`ours_3` env steps/s on `game` with the rllib_conv this process imports."""
     ray.init(num_cpus=1, include_dashboard=False, log_to_driver=False)
     with tempfile.TemporaryDirectory() as tmp:
-        population = {"bandit": "bandit-s2-hand", "blocks": None, "hanabi": "hanabi-scripted"}[game] or _blocks_four(Path(tmp))
-        return steps_per_second(ours(population, 3), seconds, replicas=3)[0]
+        return steps_per_second(ours(population_of(game, Path(tmp)), 3), seconds, replicas=3)[0]
 
 
 def run_child(code: Path, game: str, seconds: float) -> float:

@@ -117,6 +117,12 @@ def steps_per_second(config: PPOConfig, seconds: float, replicas: int | None = N
 
 
 TARGETS = {"bandit": 3000, "blocks": 8000, "hanabi": 2500}  # issue 22, env steps/s per trial
+ENV_CONFIGS = {"bandit": {"symmetric": 2}, "blocks": {}, "hanabi": {}}  # what RLlib's default and the ceiling play
+
+
+def population_of(game: str, folder: Path) -> str:
+    """The partner population `ours` trains `game`'s ego against (blocks: a 4-partner manifest written to `folder`)."""
+    return {"bandit": "bandit-s2-hand", "hanabi": "hanabi-scripted"}.get(game) or _blocks_four(folder)
 MOVES_PER_STEP = {"bandit": 2, "blocks": 1, "hanabi": 1}  # agent moves in one env step
 
 
@@ -127,11 +133,10 @@ def main() -> None:
     args = parser.parse_args()
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
     tmp = Path(__file__).resolve().parent / "results"
-    games = {"bandit": ("bandit-s2-hand", {"symmetric": 2}), "blocks": (_blocks_four(tmp), {}), "hanabi": ("hanabi-scripted", {})}
     rows = []
     try:
         for game in args.games:
-            population, env_config = games[game]
+            population, env_config = population_of(game, tmp), ENV_CONFIGS[game]
             one, n_one = steps_per_second(ours(population, 1), args.seconds, replicas=1)
             three, n_three = steps_per_second(ours(population, 3), args.seconds, replicas=3)
             episodes, n_episodes = steps_per_second(ours(population, 3, batched=False), args.seconds, replicas=3)
