@@ -10,6 +10,7 @@ import yaml
 from rllib_conv.cli import main
 from rllib_conv.common import methods, resources
 from rllib_conv.common.arrays import to_numpy
+from rllib_conv.common.atomic_files import replaced_atomically, write_text_atomically
 from rllib_conv.common.run_folders import experiment_name, read_marker, split_experiment, write_marker
 from rllib_conv.pipelines.plans import plan_for, read_plan_file, shipped_plan
 from rllib_conv.training.experiment import ExperimentConfig
@@ -92,3 +93,17 @@ def test_to_numpy_takes_tensors_with_gradients_and_plain_sequences() -> None:
     out = to_numpy(t)
     assert isinstance(out, np.ndarray) and out.dtype == np.float32 and out.tolist() == [3.0, -4.0]
     assert to_numpy([1, 2]).tolist() == [1, 2] and to_numpy(np.int64(3)).shape == ()
+
+
+def test_a_file_is_replaced_whole_or_left_as_it_was(tmp_path) -> None:
+    target = tmp_path / "curves.csv"
+    assert write_text_atomically(target, "a\n1\n") == target and target.read_text() == "a\n1\n"
+    with pytest.raises(RuntimeError, match="killed mid-write"):
+        with replaced_atomically(target) as tmp:
+            tmp.write_text("a\n")  # half of the new content
+            raise RuntimeError("killed mid-write")
+    assert target.read_text() == "a\n1\n"  # the old file, whole
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["curves.csv"]  # and no half-written file beside it
+    (tmp_path / ".curves.csv.tmp").write_text("left by a killed process")
+    write_text_atomically(target, "a\n2\n")
+    assert target.read_text() == "a\n2\n" and sorted(p.name for p in tmp_path.iterdir()) == ["curves.csv"]

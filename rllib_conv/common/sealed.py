@@ -12,6 +12,8 @@ import hashlib
 import json
 from pathlib import Path
 
+from rllib_conv.common.atomic_files import write_text_atomically
+
 MANIFEST = "manifest.json"
 
 
@@ -31,10 +33,7 @@ def seal(folder: str | Path) -> Path:
     """Write `folder`'s manifest (size and SHA-256 of every file) atomically; return its path."""
     folder = Path(folder)
     entries = {str(p.relative_to(folder)): {"size": p.stat().st_size, "sha256": _digest(p)} for p in _files(folder)}
-    path, tmp = folder / MANIFEST, folder / (MANIFEST + ".tmp")
-    tmp.write_text(json.dumps(entries, indent=1, sort_keys=True))
-    tmp.replace(path)
-    return path
+    return write_text_atomically(folder / MANIFEST, json.dumps(entries, indent=1, sort_keys=True))
 
 
 def verify(folder: str | Path) -> None:

@@ -18,14 +18,13 @@ loads a manifest from disk.
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from pathlib import Path
 from typing import Any, Callable, Literal
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
+from rllib_conv.common.atomic_files import write_text_atomically
 from rllib_conv.common.config_files import GRID_KEY, describe, is_grid
 from rllib_conv.common.run_folders import POPULATION_FILE
 from rllib_conv.envs.registry import factory as env_factory
@@ -103,12 +102,7 @@ class Population(BaseModel):
         """Write the manifest as JSON atomically (a crash never leaves a half-written file)."""
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-        with os.fdopen(fd, "w") as f:
-            json.dump(self.model_dump(), f, indent=2)
-            f.write("\n")
-        os.replace(tmp, path)
-        return path
+        return write_text_atomically(path, json.dumps(self.model_dump(), indent=2) + "\n")
 
     @classmethod
     def load(cls, path: str | Path) -> "Population":

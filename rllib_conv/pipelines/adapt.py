@@ -40,6 +40,7 @@ import pandas as pd
 from ray import tune
 
 from rllib_conv import envs, partners
+from rllib_conv.common.atomic_files import replaced_atomically
 from rllib_conv.common.config_files import validate
 from rllib_conv.common.methods import method
 from rllib_conv.common.run_folders import ADAPT_PREFIX, RL_MODULE_DIR, trial_folders
@@ -326,10 +327,9 @@ class AdaptTrainable(AlgorithmTrainable):
         }
 
     def _write_curves(self) -> None:
-        path = self.trial_folder / CURVES_FILE
-        tmp = path.with_suffix(".tmp")
-        pd.DataFrame(self.rows).to_csv(tmp, index=False)
-        tmp.replace(path)  # whole or absent: a pack counts as finished only with its curves
+        # Whole or absent: a pack counts as finished only with its curves.
+        with replaced_atomically(self.trial_folder / CURVES_FILE) as tmp:
+            pd.DataFrame(self.rows).to_csv(tmp, index=False)
 
 
 def adaptation_curves(cfg: AdaptConfig) -> list[dict[str, str]]:

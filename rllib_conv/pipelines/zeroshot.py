@@ -28,6 +28,7 @@ from ray import tune
 
 from rllib_conv import partners
 from rllib_conv.common import methods
+from rllib_conv.common.atomic_files import replaced_atomically
 from rllib_conv.common.config_files import validate
 from rllib_conv.common.run_folders import RL_MODULE_DIR, ZEROSHOT_PREFIX, trial_folders
 from rllib_conv.envs.defaults import ZEROSHOT_DEFAULTS
@@ -196,10 +197,8 @@ class ZeroShotTrainable(AlgorithmTrainable):
         return out
 
     def _write_results(self, rows: list[dict[str, Any]]) -> None:
-        path = self.trial_folder / RESULTS_FILE
-        tmp = path.with_suffix(".tmp")
-        pd.DataFrame(rows, columns=RESULT_COLUMNS).to_csv(tmp, index=False)
-        tmp.replace(path)
+        with replaced_atomically(self.trial_folder / RESULTS_FILE) as tmp:
+            pd.DataFrame(rows, columns=RESULT_COLUMNS).to_csv(tmp, index=False)
 
 
 def reset_logits_state(task_state: dict[str, torch.Tensor], seed: int) -> dict[str, torch.Tensor]:

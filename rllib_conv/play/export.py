@@ -20,10 +20,9 @@ from __future__ import annotations
 
 import csv
 import io
-import os
-import tempfile
 from pathlib import Path
 
+from rllib_conv.common.atomic_files import replaced_atomically
 from rllib_conv.common.user_study_table import COLUMNS as USER_STUDY_COLUMNS
 from rllib_conv.common.user_study_table import load_user_study
 from rllib_conv.play.store import Store, db_path
@@ -82,14 +81,8 @@ def export(db: str | Path, out: str | Path | None = None, condition: str | None 
     if target.is_dir():
         raise ValueError(f"--out {str(target)!r} is a folder; expected the CSV file to write")
     target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", newline="") as f:
-            f.write(text)
+    with replaced_atomically(target) as tmp:
+        tmp.write_text(text, newline="")
         if game == "bandit":
             load_user_study(tmp)  # the analysis must read what we write
-        os.replace(tmp, target)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
     return target, text.count("\n") - 1

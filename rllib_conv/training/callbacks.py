@@ -12,6 +12,7 @@ from typing import Any, Callable
 
 from ray.tune import Callback
 
+from rllib_conv.common.atomic_files import replaced_atomically, write_text_atomically
 from rllib_conv.common.run_folders import PROGRESS_FILES
 from rllib_conv.learners.marginal_learner import HEAD_L2_KEY, MARGINAL_REG_KEY
 
@@ -272,9 +273,7 @@ class TrimRerunResults(Callback):
         header = lines[:1] if path.suffix == ".csv" else []
         rows = lines[len(header):]
         keep = header + [line for line, it in zip(rows, self._row_iterations(path, lines)) if it is not None and it < before]
-        tmp = path.with_suffix(path.suffix + ".tmp")
-        tmp.write_text("".join(keep))
-        tmp.replace(path)
+        write_text_atomically(path, "".join(keep))
 
     def on_trial_result(self, iteration: int, trials: list, trial: Any, result: dict[str, Any], **info: Any) -> None:
         current = int(result.get("training_iteration", 0))
@@ -323,6 +322,5 @@ def restore_checkpointed_logs(experiment: Path) -> None:
 
 
 def _copy_atomically(source: Path, target: Path) -> None:
-    tmp = target.with_name(target.name + ".tmp")
-    shutil.copyfile(source, tmp)
-    tmp.replace(target)
+    with replaced_atomically(target) as tmp:
+        shutil.copyfile(source, tmp)

@@ -19,6 +19,7 @@ from typing import Any, TypeVar
 import pandas as pd
 import ray
 
+from rllib_conv.common.atomic_files import replaced_atomically
 from rllib_conv.training.tuning import init_ray, trial_job
 
 T = TypeVar("T")
@@ -105,9 +106,8 @@ def write_tables(results: Any, cfgs: list[Any], file: str, columns: list[str], o
         if errors:  # no CSV: a config's CSV means all its rows are in it
             continue
         table = pd.concat(frames, ignore_index=True).sort_values(order, kind="stable", ignore_index=True)
-        tmp = out / f".{cfg.name}.csv.tmp"
-        table.to_csv(tmp, index=False)
-        tmp.replace(out / f"{cfg.name}.csv")
+        with replaced_atomically(out / f"{cfg.name}.csv") as tmp:
+            table.to_csv(tmp, index=False)
         tables[cfg.name] = table
     if any(failed):
         unfinished = [c.name for c, n in zip(cfgs, failed) if n]

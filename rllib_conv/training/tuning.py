@@ -21,6 +21,7 @@ from ray.tune import Callback
 from ray.tune.execution.placement_groups import PlacementGroupFactory
 from ray.tune.utils import flatten_dict
 
+from rllib_conv.common.atomic_files import write_text_atomically
 from rllib_conv.common.config_files import GRID_KEY
 from rllib_conv.common.run_folders import SPEC_FILE
 from rllib_conv.common.tracking import LOGGERS
@@ -155,9 +156,7 @@ def check_spec(folder: Path, spec: dict[str, Any], grows: str | None = None) -> 
         if spec == stored:
             return
     folder.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(".tmp")
-    tmp.write_text(yaml.safe_dump(spec, sort_keys=False))
-    tmp.replace(path)
+    write_text_atomically(path, yaml.safe_dump(spec, sort_keys=False))
 
 
 def fit(
