@@ -8,6 +8,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from analysis.paper import LABEL_NAMES
 from analysis.report import build_report
 from analysis.report.sections.status import trained_steps
 from analysis.report.verdicts import CONTRADICTED, NOT_SHOWN, SUPPORTED, VERDICTS, ClaimCheck, Difference, all_hold
@@ -254,6 +255,12 @@ def test_adaptation_claims_are_paired_over_seeds_on_the_papers_method(tmp_path: 
     assert "Claims checked: 5 (2 supported, 3 not shown, 0 contradicted)" in summary
 
 
+def test_lists_of_method_names_read_unambiguously() -> None:
+    # The report joins names with "; " (e.g. "have ours λ=0.5, low-dim z; oracle marginals"): no name may hold one.
+    assert any("," in name for name in LABEL_NAMES.values())
+    assert not [name for name in LABEL_NAMES.values() if ";" in name]
+
+
 def test_the_convention_posterior_is_judged_against_its_own_targets(tmp_path: Path) -> None:
     write_bandit_adaptation(tmp_path / "repro")
     game = tmp_path / "repro" / "bandit"
@@ -269,7 +276,7 @@ def test_the_convention_posterior_is_judged_against_its_own_targets(tmp_path: Pa
         (game / "adaptation" / f"{population}__beyond-posterior.csv").write_text("\n".join(rows) + "\n")
     text = build_report(tmp_path / "repro", tmp_path / "out").read_text()
     beyond = text.split("## Beyond the paper: the convention-posterior adapter")[1]
-    name = "convention posterior (beyond the paper; ours λ=0.5 egos)"
+    name = "convention posterior (beyond the paper)"
     assert f"| Arms 2 | {name} | AUC within 0.01 of the Bayes-optimal adapter | supported | {name} − Bayes-optimal (0.874) +0.000 [+0.000, +0.000] (n=3) |" in beyond
     assert f"| Arms 3 | {name} | AUC within 0.01 of the Bayes-optimal adapter | contradicted | {name} − Bayes-optimal" in beyond
     assert "![beyond_posterior](figures/beyond_posterior.png)" in beyond
@@ -296,7 +303,7 @@ def test_both_adapters_beyond_the_paper_are_judged_on_hanabi(tmp_path: Path) -> 
     text = build_report(tmp_path / "repro", tmp_path / "out").read_text()
     beyond = text.split("## Beyond the paper: the convention-posterior adapter")[1]
     assert "`beyond-guarded` is the same adapter with its fine-tuning guarded" in beyond
-    posterior, guarded = "convention posterior (beyond the paper; ours λ=0.5 egos)", "convention posterior, guarded (beyond the paper)"
+    posterior, guarded = "convention posterior (beyond the paper)", "guarded convention posterior (beyond the paper)"
     # The posterior equals ours on every seed: its difference is exactly 0, so "above" is not shown;
     # the guarded one is above ours by 0.15, 0.14, 0.13 (mean 0.14) and above BaselineAgg by 0.25 on every seed.
     assert f"| Hanabi (self-play) | {posterior} | above ours λ=0.5 and BaselineAgg | not shown |" in beyond

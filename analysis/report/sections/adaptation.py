@@ -36,7 +36,7 @@ def adaptation_claims(ctx: Context, auc: pd.DataFrame) -> list[ClaimCheck]:
         places = digits(game)
         base = [lab for lab in BASELINES if lab in labels]
         if PAPER_METHOD not in labels or not base:
-            have = ", ".join(map(label_name, sorted(labels)))
+            have = "; ".join(map(label_name, sorted(labels)))  # "; ": some names hold a comma
             checks.append(ClaimCheck(claims["regularised-best"], scope, NOT_SHOWN, f"needs {label_name(PAPER_METHOD)} and a baseline; have {have}", game))
         else:
             verdict, evidence = beats_all(p, PAPER_METHOD, base, "auc", WITHIN, places)
