@@ -233,7 +233,7 @@ def train_population(
         raise ValueError(f"population folder {str(target)!r} already exists; choose another name or pass --overwrite")
     pairs = cfg.train_pairs + cfg.test_pairs
     checkpoint = tune.CheckpointConfig(num_to_keep=1, checkpoint_frequency=cfg.run.checkpoint_every, checkpoint_at_end=True)
-    progress = StageProgress(label) if label else "lines"
+    progress = StageProgress(label, stops_early="a pair stops when it passes the gate") if label else "lines"
     space = {**raw, "pair": tune.grid_search(list(range(pairs)))}
     results = fit(SelfPlayTrainable, raw, space, f"{SELFPLAY_PREFIX}{cfg.name}", storage, address, checkpoint, progress, loggers=loggers)
     target.parent.mkdir(parents=True, exist_ok=True)

@@ -153,10 +153,16 @@ class StageProgress(_ThrottledPrint):
     `units` (optional) says how many units (seeds, curves, runs) a trial's config runs
     together: a trial not yet started then counts as the known steps per unit times its own
     units, so a stage cut into trials of different sizes shows its true total.
+
+    `stops_early` (optional) says why trials may end before their steps are played (a
+    self-play pair stops at its gate): the total and the ETA are then printed as bounds,
+    followed by that reason.
     """
 
-    def __init__(self, label: str, every: float = 30.0, log: Any = None, units: Callable[[dict[str, Any]], int] | None = None) -> None:
-        self.label, self.every, self.log, self.units = label, every, log, units
+    def __init__(
+        self, label: str, every: float = 30.0, log: Any = None, units: Callable[[dict[str, Any]], int] | None = None, stops_early: str | None = None
+    ) -> None:
+        self.label, self.every, self.log, self.units, self.stops_early = label, every, log, units, stops_early
         self._start = time.monotonic()
         self._last_print = self._start
         self._latest: dict[str, dict[str, Any]] = {}
@@ -218,9 +224,10 @@ class StageProgress(_ThrottledPrint):
         running, waiting, done = self._work(trials)
         eta = self._eta(running, waiting)
         elapsed = time.monotonic() - self._start
+        bound, why = ("at most ", f" ({self.stops_early})") if self.stops_early and (running or waiting) else ("", "")
         return (
-            f"{self.label}: {finished}/{len(trials)} trials done, {_count(done)}/{_count(done + sum(running) + sum(waiting))} env steps, "
-            f"{_duration(elapsed)} elapsed, ETA {'?' if eta is None else _duration(eta)}"
+            f"{self.label}: {finished}/{len(trials)} trials done, {_count(done)}/{bound}{_count(done + sum(running) + sum(waiting))} env steps, "
+            f"{_duration(elapsed)} elapsed, ETA {'?' if eta is None else bound + _duration(eta)}{why}"
         )
 
     text = line

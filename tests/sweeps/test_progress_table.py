@@ -49,6 +49,24 @@ def test_stage_line_counts_this_runs_steps_for_its_eta(monkeypatch) -> None:
     assert progress.line(trials) == "[bandit] adapt: 0/2 trials done, 0.6k/2.0k env steps, 0m20s elapsed, ETA 0m53s"
 
 
+def test_a_stage_whose_trials_may_stop_early_prints_bounds_and_why(monkeypatch) -> None:
+    # Two self-play pairs of at most 1000 steps each, 200 and 100 played in 10 s by two trials: 15 steps a
+    # trial-second; pair b has 900 left: at most 60 s. Once both have stopped nothing is left, and the line says so plainly.
+    now = [0.0]
+    monkeypatch.setattr(callbacks.time, "monotonic", lambda: now[0])
+    progress = callbacks.StageProgress("[hanabi] self-play", every=1e9, log=lambda line: None, stops_early="a pair stops when it passes the gate")
+    trials = [_trial("a", "RUNNING", {}, {}), _trial("b", "RUNNING", {}, {})]
+    now[0] = 10.0
+    progress.on_trial_result(1, trials, trials[0], {STEPS_DONE: 200, STEPS_TOTAL: 1000})
+    progress.on_trial_result(1, trials, trials[1], {STEPS_DONE: 100, STEPS_TOTAL: 1000})
+    assert progress.line(trials) == (
+        "[hanabi] self-play: 0/2 trials done, 0.3k/at most 2.0k env steps, 0m10s elapsed, ETA at most 1m00s (a pair stops when it passes the gate)"
+    )
+    for trial in trials:
+        trial.status = "TERMINATED"
+    assert progress.line(trials) == "[hanabi] self-play: 2/2 trials done, 0.3k/0.3k env steps, 0m10s elapsed, ETA 0m00s"
+
+
 def test_stage_eta_counts_a_last_trial_alone_on_one_core(monkeypatch) -> None:
     # Five trials of 1000 steps on 2 cores. After 100 s two are done and two are half way (3000
     # steps in 200 trial-seconds: 15 a trial-second). Left: 500 + 500 on the two cores, then the
