@@ -830,8 +830,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         with _quiet(args.verbose, keep_logs=args.command == "play"):
             args.func(args)
-    except KeyboardInterrupt:
-        print("rllib-conv: interrupted", file=sys.stderr)
+    except KeyboardInterrupt as exc:
+        print(f"rllib-conv: interrupted{': ' + _one_line(exc) if str(exc) else ''}", file=sys.stderr)
         return EXIT_INTERRUPTED
     except (ValueError, yaml.YAMLError, FileNotFoundError, IsADirectoryError, NotADirectoryError, PermissionError) as exc:
         print(f"rllib-conv: error: {_one_line(exc)}", file=sys.stderr)

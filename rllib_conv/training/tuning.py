@@ -159,6 +159,10 @@ def check_spec(folder: Path, spec: dict[str, Any], grows: str | None = None) -> 
     write_text_atomically(path, yaml.safe_dump(spec, sort_keys=False))
 
 
+class StageInterrupted(KeyboardInterrupt):
+    """A Tune run that stopped before all of its trials finished (on Ctrl-C Tune saves and stops the trials, then returns as if done)."""
+
+
 def fit(
     trainable: type[tune.Trainable],
     spec: dict[str, Any],
@@ -178,6 +182,9 @@ def fit(
     so is `resume=True` with nothing to continue. `progress`: "lines" (one per result),
     "table" (a table of all trials, see `ProgressTable`) or a Tune callback of its own
     (`StageProgress`). `loggers` adds experiment tracking (`logger_callbacks`).
+
+    Raises `StageInterrupted` when the run stopped with trials neither finished nor failed, so
+    that no caller takes an interrupted run for a finished one (and, e.g., marks its stage done).
     """
     if not isinstance(progress, Callback) and progress not in PROGRESS:
         raise ValueError(f"progress must be one of {sorted(PROGRESS)}, got {progress!r}")
@@ -209,4 +216,9 @@ def fit(
                 checkpoint_config=checkpoint or tune.CheckpointConfig(checkpoint_at_end=True),
             ),
         )
-    return tuner.fit()
+    results = tuner.fit()
+    # Tune marks interrupted trials TERMINATED too; a finished one's last result says `done` (every trainable here sets it).
+    unfinished = sum(r.error is None and not (r.metrics or {}).get("done") for r in results)
+    if unfinished:
+        raise StageInterrupted(f"{unfinished} of {len(results)} trials of {str(path)!r} stopped before they finished; run the same command again to continue them")
+    return results

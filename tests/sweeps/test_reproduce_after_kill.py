@@ -102,3 +102,24 @@ def test_reproduce_killed_in_train_and_in_adapt_finishes_as_an_uninterrupted_run
     for name, table in theirs.items():
         pd.testing.assert_frame_equal(ours[name], table, rtol=1e-6, atol=1e-7, obj=name)
     assert _report(killed) == _report(reference)
+
+
+def test_reproduce_interrupted_in_train_says_so_marks_nothing_done_and_continues(tmp_path) -> None:
+    # Ctrl-C (SIGINT to the driver): Tune stops the trials and returns. The stage must not count as finished.
+    plan, out = _plan(tmp_path), tmp_path / "interrupted"
+    game, ray_a = out / "bandit", private_ray_tmp()
+    proc = _start(plan, out, ray_a)
+    deadline = time.time() + 600
+    while time.time() < deadline and proc.poll() is None and not any(game.glob("runs/train-stage-*/*/progress.csv")):
+        time.sleep(0.05)
+    assert proc.poll() is None and not (game / "train.done").exists(), "the run should still be training when interrupted"
+    os.kill(proc.pid, signal.SIGINT)
+    log, _ = proc.communicate(timeout=600)
+    kill_ray_instance(ray_a)
+    log = log.decode()
+    assert proc.returncode == 130, log[-4000:]
+    assert re.search(r"rllib-conv: interrupted: \d+ of \d+ trials of .*train-stage-.* run the same command again", log), log[-4000:]
+    assert "[bandit] train: finished" not in log and not (game / "train.done").exists()
+    ray_b = private_ray_tmp()
+    log = _finish(_start(plan, out, ray_b), ray_b)
+    assert "[bandit] train: running" in log and (game / "train.done").exists() and (game / "adapt.done").exists()
