@@ -20,11 +20,10 @@ from typing import Any
 
 import pandas as pd
 import ray
-from ray.rllib.core.learner.training_data import TrainingData
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import median_seconds, write_result  # noqa: E402
-from train_throughput import _blocks_four, ours  # noqa: E402
+from train_throughput import fixed_update, ours, population_of  # noqa: E402
 
 import rllib_conv.learners.fused_step as fused_step  # noqa: E402
 
@@ -49,14 +48,11 @@ def update_times(population: str, repeats: int, kernel: dict[str, str]) -> dict[
     algo = ours(population, 3).build_algo()
     try:
         algo.train()  # warm-up: optimizer states exist
-        learner, config = algo.learner_group._learner, algo.config
-        episodes = algo.env_runner.sample()
+        update = fixed_update(algo, algo.env_runner.sample())
 
         def update_with(name: str) -> Any:
             kernel["now"] = name
-            return learner.update(
-                training_data=TrainingData(episodes=episodes), num_epochs=config.num_epochs, minibatch_size=config.minibatch_size, shuffle_batch_per_epoch=True, timesteps={}
-            )
+            return update()
 
         return median_seconds({name: functools.partial(update_with, name) for name in KERNELS}, repeats)
     finally:
@@ -75,8 +71,7 @@ def main() -> None:
     rows = []
     try:
         for game in args.games:
-            population = {"bandit": "bandit-s2-hand", "hanabi": "hanabi-scripted"}.get(game) or _blocks_four(tmp)
-            t = update_times(population, args.repeats, kernel)
+            t = update_times(population_of(game, tmp), args.repeats, kernel)
             rows.append({"env": game, "foreach_ms": 1e3 * t["foreach"], "fused_ms": 1e3 * t["fused"], "foreach/fused": t["foreach"] / t["fused"]})
             print(pd.DataFrame(rows).to_string(index=False, float_format="{:.2f}".format), flush=True)
     finally:

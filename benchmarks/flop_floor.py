@@ -22,7 +22,6 @@ and of the plan. Writes `benchmarks/results/flop_floor.json`.
 from __future__ import annotations
 
 import argparse
-import functools
 import sys
 from pathlib import Path
 from typing import Any
@@ -30,12 +29,11 @@ from typing import Any
 import pandas as pd
 import ray
 import torch
-from ray.rllib.core.learner.training_data import TrainingData
 from torch.utils.flop_counter import FlopCounterMode
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import median_seconds, write_result  # noqa: E402
-from train_throughput import ours, population_of  # noqa: E402
+from train_throughput import fixed_update, ours, population_of  # noqa: E402
 
 from rllib_conv.envs.defaults import GAME_DEFAULTS  # noqa: E402
 from rllib_conv.pipelines.plans import plan_for  # noqa: E402
@@ -80,16 +78,9 @@ def measure(game: str, repeats: int, folder: Path) -> dict[str, Any]:
         before = algo.train()  # warm-up: optimizer states exist, the env runner's weights are set
         after = algo.train()
         steps = sum(replica_env_steps(after, r) - replica_env_steps(before, r) for r in range(SEEDS))
-        learner, runner = algo.learner_group._learner, algo.env_runner
+        runner = algo.env_runner
         sample_flops, episodes = flops(runner.sample)
-        update = functools.partial(
-            learner.update,
-            training_data=TrainingData(episodes=episodes),
-            num_epochs=config.num_epochs,
-            minibatch_size=config.minibatch_size,
-            shuffle_batch_per_epoch=True,
-            timesteps={},
-        )
+        update = fixed_update(algo, episodes)
         update_flops, _ = flops(update)
         seconds = median_seconds({"sample": runner.sample, "update": update}, repeats)
     finally:

@@ -27,13 +27,17 @@ Timed over whole training iterations after one warm-up iteration. Writes
 from __future__ import annotations
 
 import argparse
+import functools
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import pandas as pd
 import ray
 from ray.rllib.algorithms.ppo import PPOConfig
+from ray.rllib.core.learner.training_data import TrainingData
 from ray.rllib.core.rl_module.multi_rl_module import MultiRLModuleSpec
 from ray.rllib.core.rl_module.rl_module import RLModuleSpec
 from ray.rllib.examples.rl_modules.classes.action_masking_rlm import (
@@ -118,6 +122,19 @@ def steps_per_second(config: PPOConfig, seconds: float, replicas: int | None = N
 
 TARGETS = {"bandit": 3000, "blocks": 8000, "hanabi": 2500}  # issue 22, env steps/s per trial
 ENV_CONFIGS = {"bandit": {"symmetric": 2}, "blocks": {}, "hanabi": {}}  # what RLlib's default and the ceiling play
+
+
+def fixed_update(algo: Any, episodes: Any) -> Callable[[], Any]:
+    """One learner update of `algo` (built from `ours`) on the sampled `episodes`, as `train()` runs it, to call again and again on the same batch."""
+    config = algo.config
+    return functools.partial(
+        algo.learner_group._learner.update,
+        training_data=TrainingData(episodes=episodes),
+        num_epochs=config.num_epochs,
+        minibatch_size=config.minibatch_size,
+        shuffle_batch_per_epoch=True,
+        timesteps={},
+    )
 
 
 def population_of(game: str, folder: Path) -> str:
