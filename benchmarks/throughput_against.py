@@ -1,16 +1,18 @@
 """Ego-training env steps/s per trial (3 packed seeds, `train_throughput.py`'s `ours_3`) by an older commit and now, side by side.
 
-    OMP_NUM_THREADS=1 python benchmarks/throughput_against.py --old-commit COMMIT [--games blocks hanabi] [--seconds 20] [--rounds 3] [--name NAME]
+    OMP_NUM_THREADS=1 python benchmarks/throughput_against.py --old-commit COMMIT [--games blocks hanabi] [--methods modular agg] [--seconds 20] [--rounds 3] [--name NAME]
 
 Each measurement is a fresh process with the rllib_conv of either a git worktree of
 `--old-commit` or this checkout, the two alternating (A B, B A, ...) so that the shared
 machine's drift falls on both alike; the table gives each one's median and the ratio.
-Written to `benchmarks/results/<NAME>.json` (default `throughput_against`).
+`--methods` trains other egos than the paper's (`modular`, lam 0.5), e.g. BaselineAgg, whose
+one head takes 4x the minibatch steps. Written to `benchmarks/results/<NAME>.json` (default `throughput_against`).
 """
 
 from __future__ import annotations
 
 import argparse
+import itertools
 import os
 import statistics
 import subprocess
@@ -26,22 +28,24 @@ from train_throughput import ours, population_of, steps_per_second
 
 HERE = Path(__file__).resolve()
 GAMES = ("bandit", "blocks", "hanabi")
+METHODS = ("modular", "agg", "no_task_logits", "maml")
 
 
-def measure(game: str, seconds: float) -> float:
-    """`ours_3` env steps/s on `game` with the rllib_conv this process imports."""
+def measure(game: str, method: str, seconds: float) -> float:
+    """`ours_3` env steps/s on `game` (an ego of `method`) with the rllib_conv this process imports."""
     ray.init(num_cpus=1, include_dashboard=False, log_to_driver=False)
     with tempfile.TemporaryDirectory() as tmp:
-        return steps_per_second(ours(population_of(game, Path(tmp)), 3), seconds, replicas=3)[0]
+        return steps_per_second(ours(population_of(game, Path(tmp)), 3, method=method), seconds, replicas=3)[0]
 
 
-def run_child(code: Path, game: str, seconds: float) -> float:
+def run_child(code: Path, game: str, method: str, seconds: float) -> float:
     """`measure` in a fresh process whose rllib_conv is `code`'s."""
     env = {**os.environ, "PYTHONPATH": str(code), "OMP_NUM_THREADS": "1", "RAY_ADDRESS": ""}
-    proc = subprocess.run([sys.executable, str(HERE), "--child", game, "--seconds", str(seconds)], cwd=tempfile.gettempdir(), env=env, capture_output=True, text=True)
+    command = [sys.executable, str(HERE), "--child", game, "--methods", method, "--seconds", str(seconds)]
+    proc = subprocess.run(command, cwd=tempfile.gettempdir(), env=env, capture_output=True, text=True)
     line = next((ln for ln in proc.stdout.splitlines() if ln.startswith("STEPS ")), None)
     if proc.returncode != 0 or line is None:
-        raise RuntimeError(f"measuring {game} with {code} failed:\n{(proc.stdout + proc.stderr)[-4000:]}")
+        raise RuntimeError(f"measuring {game} ({method}) with {code} failed:\n{(proc.stdout + proc.stderr)[-4000:]}")
     return float(line.split()[1])
 
 
@@ -49,25 +53,26 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--old-commit", help="the commit to compare against (required unless --child)")
     parser.add_argument("--games", nargs="+", default=["blocks", "hanabi"], choices=GAMES)
+    parser.add_argument("--methods", nargs="+", default=["modular"], choices=METHODS, help="the egos trained (each on every game)")
     parser.add_argument("--seconds", type=float, default=20.0, help="minimum timed training per measurement")
     parser.add_argument("--rounds", type=int, default=3, help="measurements of each code per game")
     parser.add_argument("--name", default="throughput_against")
     parser.add_argument("--child", choices=GAMES, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:
-        print(f"STEPS {measure(args.child, args.seconds)}")
+        print(f"STEPS {measure(args.child, args.methods[0], args.seconds)}")
         return
     if not args.old_commit:
         parser.error("--old-commit is required: the commit to compare this checkout against")
     work = Path(tempfile.mkdtemp(prefix="throughput-against-"))
     codes = {"before": worktree(args.old_commit, work), "now": REPO}
     rows = []
-    for game in args.games:
+    for game, method in itertools.product(args.games, args.methods):
         runs: dict[str, list[float]] = {name: [] for name in codes}
         for name in alternating(list(codes), args.rounds):
-            runs[name].append(run_child(codes[name], game, args.seconds))
+            runs[name].append(run_child(codes[name], game, method, args.seconds))
         before, now = statistics.median(runs["before"]), statistics.median(runs["now"])
-        rows.append({"env": game, "before": before, "now": now, "now/before": now / before, "runs": runs})
+        rows.append({"env": game, "method": method, "before": before, "now": now, "now/before": now / before, "runs": runs})
         print(pd.DataFrame(rows).drop(columns="runs").to_string(index=False, float_format="{:.2f}".format), flush=True)
     subprocess.run(["git", "-C", str(REPO), "worktree", "remove", "--force", str(codes["before"])], check=False, capture_output=True)
     path = write_result(args.name, {"old_commit": args.old_commit, "seconds": args.seconds, "rounds": args.rounds, "rows": rows})

@@ -70,10 +70,11 @@ def _blocks_four(tmp: Path) -> str:
     return str(pop.save(tmp / "blocks-perm4.json"))
 
 
-def ours(population: str, seeds: int, batched: bool = True) -> PPOConfig:
-    """The modular ego's config (paper hyperparameters) for `population`, `seeds` seeds packed as replicas."""
+def ours(population: str, seeds: int, batched: bool = True, method: str = "modular") -> PPOConfig:
+    """The ego's config (paper hyperparameters; `method`, the modular ego with lam 0.5 by default) for `population`, `seeds` seeds packed as replicas."""
     run = {"batched_sampling": batched}
-    return build_ppo_config([Replica(resolve(ExperimentConfig(population=population, lam=0.5, seed=s, run=run))) for s in range(seeds)])
+    lam = {"lam": 0.5} if method == "modular" else {}
+    return build_ppo_config([Replica(resolve(ExperimentConfig(population=population, method=method, seed=s, run=run, **lam))) for s in range(seeds)])
 
 
 def rllib_default(env: str, env_config: dict) -> PPOConfig:

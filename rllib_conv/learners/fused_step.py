@@ -41,6 +41,17 @@ def segment_norms(grads: list[torch.Tensor], segment_dims: int) -> tuple[torch.T
     return per.nan_to_num(neginf=-_NORM_CAP, posinf=_NORM_CAP).pow(2).sum(0).sqrt(), per
 
 
+def _scale(grads: list[torch.Tensor], coeff: torch.Tensor, segment_dims: int) -> None:
+    """Multiply each gradient in place by its segment's coefficient (`coeff`: [segment shape]), in one foreach op."""
+    shaped = {nd: coeff.reshape(*coeff.shape, *([1] * (nd - segment_dims))) for nd in {g.dim() for g in grads}}
+    torch._foreach_mul_(grads, [shaped[g.dim()] for g in grads])
+
+
+def _coefficient(norms: torch.Tensor, grad_clip: float) -> torch.Tensor:
+    """RLlib's clip coefficient of each segment: clip / max(norm + 1e-6, clip)."""
+    return torch.clamp(grad_clip / torch.clamp(norms + _EPS, min=grad_clip), max=1.0)
+
+
 @torch.no_grad()
 def clip_segments(grads: list[torch.Tensor], segment_dims: int, grad_clip: float | None) -> torch.Tensor | None:
     """Clip one optimizer's `grads` in place, segment by segment (see `segment_norms`); zero non-finite ones as RLlib does.
@@ -49,16 +60,26 @@ def clip_segments(grads: list[torch.Tensor], segment_dims: int, grad_clip: float
     """
     if not grads:
         return None
+    # One norm over every tensor at once: a minibatch step pays per tensor op, and RLlib's
+    # norm of per-tensor norms is the same number (other rounding). Its per-tensor rules
+    # (capped norms, non-finite gradients) matter only when this norm is not finite.
+    norms = torch.linalg.vector_norm(torch.cat([g.reshape(*g.shape[:segment_dims], -1) for g in grads], dim=-1), dim=-1)
+    if not bool(torch.isfinite(norms).all()):
+        return clip_segments_per_tensor(grads, segment_dims, grad_clip)
+    if grad_clip:
+        _scale(grads, _coefficient(norms, grad_clip), segment_dims)
+    return norms if grad_clip else None
+
+
+def clip_segments_per_tensor(grads: list[torch.Tensor], segment_dims: int, grad_clip: float | None) -> torch.Tensor | None:
+    """`clip_segments` by RLlib's rules tensor by tensor: norms capped per tensor, non-finite gradients replaced after clipping."""
     norms, per = segment_norms(grads, segment_dims)
     if grad_clip:
-        coeff = torch.clamp(grad_clip / torch.clamp(norms + _EPS, min=grad_clip), max=1.0)
-        for g in grads:
-            g.mul_(coeff.reshape(*coeff.shape, *([1] * (g.dim() - segment_dims))))
+        _scale(grads, _coefficient(norms, grad_clip), segment_dims)
     finite = torch.isfinite(per.flatten(1) if per.dim() > 1 else per)
-    if not bool(finite.all()):  # RLlib zeroes non-finite gradients after clipping
-        bad = ~finite.all(dim=-1) if finite.dim() > 1 else ~finite
-        for i in torch.nonzero(bad).flatten().tolist():
-            grads[i].copy_(torch.nan_to_num(grads[i]))
+    bad = ~finite.all(dim=-1) if finite.dim() > 1 else ~finite
+    for i in torch.nonzero(bad).flatten().tolist():  # RLlib zeroes non-finite gradients after clipping
+        grads[i].copy_(torch.nan_to_num(grads[i]))
     return norms if grad_clip else None
 
 
@@ -77,7 +98,7 @@ class FusedAdamStep:
         self.segments = list(segments) if segments is not None else [0] * len(optimizers)
         self.params = [p for opt in optimizers for p in opt.param_groups[0]["params"]]
         # Which optimizer each parameter belongs to.
-        self.owner = torch.tensor([i for i, opt in enumerate(optimizers) for _ in opt.param_groups[0]["params"]])
+        self.owner = [i for i, opt in enumerate(optimizers) for _ in opt.param_groups[0]["params"]]
 
     def zero_grad(self) -> None:
         """Drop every gradient (as `zero_grad(set_to_none=True)`)."""
@@ -90,7 +111,7 @@ class FusedAdamStep:
         Looked up at every step: restoring a checkpoint replaces the state tensors.
         """
         p = self.params[i]
-        state = self.optimizers[int(self.owner[i])].state[p]
+        state = self.optimizers[self.owner[i]].state[p]
         if len(state) == 0:
             state["step"] = torch.tensor(0.0, dtype=_get_scalar_dtype(), device="cpu")
             state["exp_avg"] = torch.zeros_like(p, memory_format=torch.preserve_format)

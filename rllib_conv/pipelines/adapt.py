@@ -61,7 +61,7 @@ from rllib_conv.training.convention_posterior import (
     require_action_probs,
 )
 from rllib_conv.training.ego_setup import EgoSetup, setup_for
-from rllib_conv.training.evaluate import ego_head_partner, load_module, player_return
+from rllib_conv.training.evaluate import ego_head_partner, has_exact_return, load_module, player_return
 from rllib_conv.training.experiment import ExperimentConfig, trial_config
 from rllib_conv.training.fine_tune_guard import FineTuneGuard
 from rllib_conv.training.head_pick import HeadPick, pick_head
@@ -110,6 +110,8 @@ def adapt_curve(cfg: AdaptConfig, run: str, partner: str) -> Curve:
         )
     if cfg.head_init == "posterior":
         require_action_probs(partners.get(trained.population), "head_init 'posterior'")
+    if cfg.episodes == 0 and not has_exact_return(game, trained.env_config):
+        raise ValueError(f"episodes: 0 scores by the exact expected return, which only the one-step bandits have; {game!r} needs episodes >= 1")
     every, _ = protocol(cfg, trained)
     defaults = ADAPT_DEFAULTS.get(game, {})
     ppo = trained.ppo.model_dump()
@@ -294,7 +296,7 @@ class AdaptTrainable(AlgorithmTrainable):
             if self.cfg.guard:
                 row["prior_kept"] = not self.guards[r].trusted
             self.rows.append({**row, **({"picked": self.picked[r]} if self.picked[r] else {})})
-            returns.append(score["mean"])
+            returns.append(score["mean"] if self.cfg.episodes else score["exact"])
             self.finished[r] = self.steps[r] >= self.total
         return returns
 

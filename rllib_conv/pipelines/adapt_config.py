@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any, Literal
 
-from pydantic import Field, PositiveFloat, PositiveInt, confloat, model_validator
+from pydantic import Field, NonNegativeInt, PositiveFloat, PositiveInt, confloat, model_validator
 
 from rllib_conv.common.config_files import Strict
 from rllib_conv.training.fine_tune_guard import DEFAULT_Z
@@ -36,7 +36,8 @@ class AdaptConfig(Strict):
     Partners are `split` of `population` (default: the population each run trained on),
     optionally only `partners`. `method: scratch` adapts a fresh network instead. The ego
     is evaluated before every update (`every` env steps) up to `steps`, `episodes` episodes
-    each (and exactly on the bandit). Unset values take the paper's per-game adaptation
+    each (and exactly on the bandit, where `episodes: 0` plays none and scores by the exact
+    expectation alone: `mean_return` and `stderr` are then empty). Unset values take the paper's per-game adaptation
     settings (`rllib_conv.envs.defaults.ADAPT_DEFAULTS`); `ppo` overrides the run's PPO settings.
     `head_init: pick` (not in the paper; egos with one head per partner) first spends
     `pick_steps` env steps (default `every`) trying the fresh head and every training
@@ -64,7 +65,7 @@ class AdaptConfig(Strict):
     guard_z: PositiveFloat = DEFAULT_Z
     every: PositiveInt | None = None
     steps: PositiveInt | None = None
-    episodes: PositiveInt = 200
+    episodes: NonNegativeInt = 200
     ppo: dict[str, Any] = Field(default_factory=dict)
     seed: int = 0
     # Curves trained together as replicas of one algorithm (speed only: each trains as it would

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
@@ -57,6 +58,11 @@ def bandit_exact_return(ego: Partner, env: CollaborativeBanditEnv, partner: Part
     return float(np.mean(probs[rows, arms] * env.prizes[rows, arms]))
 
 
+def has_exact_return(env_name: str, env_config: dict[str, Any]) -> bool:
+    """Whether `player_return` can score this game exactly (one-step bandits), so it needs no sampled episodes."""
+    return isinstance(envs.make(env_name, **env_config), CollaborativeBanditEnv)
+
+
 def player_return(
     ego: Partner,
     env_name: str,
@@ -69,12 +75,18 @@ def player_return(
 ) -> dict[str, float]:
     """Return the mean return of the `ego` player with `partner` over `episodes` sampled episodes, and its standard error.
 
-    One-step bandits are also scored exactly from the two policies (`exact`).
+    One-step bandits are also scored exactly from the two policies (`exact`); there
+    `episodes=0` plays nothing (`mean` and `stderr` NaN). ValueError for `episodes=0` elsewhere.
     """
     env = envs.make(env_name, **env_config)
-    scores = play_episodes(env, {ego_agent: ego, partner_agent: partner}, episodes, seed)
-    out = {"mean": float(scores.mean()), "stderr": float(scores.std(ddof=1) / np.sqrt(len(scores))) if len(scores) > 1 else 0.0}
-    if isinstance(env, CollaborativeBanditEnv):
+    exact = isinstance(env, CollaborativeBanditEnv)
+    if episodes == 0 and not exact:
+        raise ValueError(f"episodes=0 scores by the exact expected return, which only the one-step bandits have; {env_name!r} needs episodes >= 1")
+    out = {"mean": math.nan, "stderr": math.nan}
+    if episodes:
+        scores = play_episodes(env, {ego_agent: ego, partner_agent: partner}, episodes, seed)
+        out = {"mean": float(scores.mean()), "stderr": float(scores.std(ddof=1) / np.sqrt(len(scores))) if len(scores) > 1 else 0.0}
+    if exact:
         out["exact"] = bandit_exact_return(ego, env, partner)
     return out
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 import torch
 
-from rllib_conv.learners.fused_step import FusedAdamStep
+from rllib_conv.learners.fused_step import FusedAdamStep, clip_segments, clip_segments_per_tensor
 
 
 def _grads(shapes: list[tuple[int, ...]], step: int) -> list[torch.Tensor]:
@@ -49,3 +49,25 @@ def test_fused_step_equals_torch_adam_with_each_replica_clipped_alone(grad_clip:
     # The moments live in the optimizers' own state, as torch.optim.Adam keeps them (checkpoints read them).
     state = fused.optimizers[0].state[ours[0]]
     assert int(state["step"]) == 4 and state["exp_avg"].shape == shapes[0]
+
+
+def test_non_finite_gradients_follow_rllibs_rules_per_tensor() -> None:
+    """Hand-computed: a tensor norm that is inf is capped at 1e9, a NaN one counts 0; after clipping, non-finite entries are replaced."""
+    a = torch.tensor([[float("inf"), 1.0, 1.0], [0.1, 0.1, 0.1]])
+    b = torch.tensor([[1.0, 1.0], [float("nan"), 0.2]])
+    norms = clip_segments([a, b], 1, 1.0)
+    # Replica 0: tensor norms (inf -> 1e9, sqrt 2) -> global 1e9 -> coefficient 1e-9. Replica 1: (sqrt 0.03, NaN -> 0) -> 0.1732, not clipped.
+    torch.testing.assert_close(norms, torch.tensor([1e9, 0.03**0.5]))
+    big = torch.finfo(torch.float32).max
+    torch.testing.assert_close(a, torch.tensor([[big, 1e-9, 1e-9], [0.1, 0.1, 0.1]]))
+    torch.testing.assert_close(b, torch.tensor([[1e-9, 1e-9], [0.0, 0.2]]))
+
+
+def test_one_norm_over_all_tensors_equals_rllibs_norm_of_tensor_norms() -> None:
+    """The fast path's norm (one reduction over every tensor) and the per-tensor one agree to float tolerance, and both clip alike."""
+    g = torch.Generator().manual_seed(0)
+    grads = [torch.randn(3, *s, generator=g) * 5 for s in [(4, 5), (4,), (2, 4, 4)]]
+    fast, slow = [t.clone() for t in grads], [t.clone() for t in grads]
+    torch.testing.assert_close(clip_segments(fast, 1, 0.5), clip_segments_per_tensor(slow, 1, 0.5))
+    for f, s in zip(fast, slow):
+        torch.testing.assert_close(f, s)

@@ -51,6 +51,27 @@ def test_curves_packed_together_equal_curves_run_one_at_a_time(bandit_egos, tmp_
     assert packed["exact_return"].nunique() > 3  # the curves moved
 
 
+def test_bandit_curves_without_sampled_episodes_keep_their_exact_returns(bandit_egos, tmp_path) -> None:
+    """`episodes: 0` plays no evaluation episodes: the same exact returns (evaluation draws nothing training uses), no sampled ones."""
+    trial = bandit_egos["bandit-s2-hand"].path
+    raw = {"name": "e", "runs": [trial], "partners": ["hand-test-0", "hand-test-1"], "steps": 48, "episodes": 50}
+    sampled = run_adaptation(raw, out=tmp_path / "sampled", storage=tmp_path / "runs")
+    exact = run_adaptation({**raw, "name": "x", "episodes": 0}, out=tmp_path / "exact", storage=tmp_path / "runs")
+    assert exact["mean_return"].isna().all() and exact["stderr"].isna().all() and sampled["mean_return"].notna().all()
+    pd.testing.assert_series_equal(exact["exact_return"], sampled["exact_return"])
+    assert sampled["exact_return"].nunique() > 2  # the curves moved
+
+
+def test_no_sampled_episodes_is_refused_where_no_exact_return_exists() -> None:
+    from rllib_conv.partners import get
+    from rllib_conv.training.evaluate import player_return
+
+    pop = get("blocks-perm")
+    partner = pop.partners[0].build()
+    with pytest.raises(ValueError, match="episodes=0 .* 'blocks' needs episodes >= 1"):
+        player_return(partner, "blocks", {}, partner, "player_0", "player_1", episodes=0)
+
+
 def test_adapting_drops_the_head_penalty(bandit_egos, tmp_path) -> None:
     import shutil
 
