@@ -48,11 +48,20 @@ SLICES = {
 STAGE_RUNS = {"train": "train-stage-", "adapt": "adapt-stage-", "zeroshot": "zeroshot-stage-"}
 
 
+# pyproject.toml's package-dir: the editable install maps these packages to this checkout's
+# folders, so an old worktree on PYTHONPATH would read today's plans and data without links of its own.
+DATA_PACKAGES = {"rllib_conv/tune_configs": "tune_configs", "rllib_conv/data": "analysis/data"}
+
+
 def worktree(commit: str, work: Path) -> Path:
-    """A checkout of `commit` (a git worktree, made once)."""
+    """A checkout of `commit` (a git worktree, made once) whose rllib_conv reads its own shipped configs and data."""
     path = work / f"old-{commit}"
     if not (path / "rllib_conv").is_dir():
         subprocess.run(["git", "-C", str(REPO), "worktree", "add", "--detach", str(path), commit], check=True, capture_output=True)
+    for package, folder in DATA_PACKAGES.items():
+        link = path / package
+        if (path / folder).is_dir() and not link.exists():
+            link.symlink_to(path / folder, target_is_directory=True)
     return path
 
 
