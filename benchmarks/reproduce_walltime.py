@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import subprocess
 import sys
@@ -117,7 +118,8 @@ def _print_rows(rows: list[dict[str, Any]]) -> None:
 
 def measured(game_dir: Path, old_summary: Path, cores: int, name: str | None = None) -> None:
     """The full plan of `game_dir` (already run) against the stage times of `old_summary`; print and write them (to `name`, default `reproduce_walltime_<game>_full`)."""
-    old = {s["stage"]: s["seconds"] for s in json.loads(old_summary.read_text())["stages"] if s.get("done")}
+    # A stage's seconds count where recorded: a folder grown later (more seeds) marks its earlier stages not done.
+    old = {s["stage"]: s["seconds"] for s in json.loads(old_summary.read_text())["stages"] if math.isfinite(s.get("seconds") or math.nan)}
     new = {s["stage"]: s["seconds"] for s in loaders.load_stage_times(game_dir).to_dict(orient="records") if s.get("done")}
     row = {
         "slice": game_dir.name,

@@ -61,7 +61,7 @@ from rllib_conv.training.convention_posterior import (
     require_action_probs,
 )
 from rllib_conv.training.ego_setup import EgoSetup, setup_for
-from rllib_conv.training.evaluate import ego_head_partner, has_exact_return, load_module, player_return
+from rllib_conv.training.evaluate import check_episodes, ego_head_partner, load_module, player_return
 from rllib_conv.training.experiment import ExperimentConfig, trial_config
 from rllib_conv.training.fine_tune_guard import FineTuneGuard
 from rllib_conv.training.head_pick import HeadPick, pick_head
@@ -110,8 +110,7 @@ def adapt_curve(cfg: AdaptConfig, run: str, partner: str) -> Curve:
         )
     if cfg.head_init == "posterior":
         require_action_probs(partners.get(trained.population), "head_init 'posterior'")
-    if cfg.episodes == 0 and not has_exact_return(game, trained.env_config):
-        raise ValueError(f"episodes: 0 scores by the exact expected return, which only the one-step bandits have; {game!r} needs episodes >= 1")
+    check_episodes(cfg.episodes, game, trained.env_config)
     every, _ = protocol(cfg, trained)
     defaults = ADAPT_DEFAULTS.get(game, {})
     ppo = trained.ppo.model_dump()

@@ -37,8 +37,9 @@ class AdaptConfig(Strict):
     optionally only `partners`. `method: scratch` adapts a fresh network instead. The ego
     is evaluated before every update (`every` env steps) up to `steps`, `episodes` episodes
     each (and exactly on the bandit, where `episodes: 0` plays none and scores by the exact
-    expectation alone: `mean_return` and `stderr` are then empty). Unset values take the paper's per-game adaptation
-    settings (`rllib_conv.envs.defaults.ADAPT_DEFAULTS`); `ppo` overrides the run's PPO settings.
+    expectation alone: `mean_return` and `stderr` are then empty). Unset values take the
+    paper's per-game adaptation settings (`rllib_conv.envs.defaults.ADAPT_DEFAULTS`); `ppo`
+    overrides the run's PPO settings.
     `head_init: pick` (not in the paper; egos with one head per partner) first spends
     `pick_steps` env steps (default `every`) trying the fresh head and every training
     partner's head on the new partner, and adapts from the best (`rllib_conv.training.head_pick`).

@@ -58,9 +58,10 @@ def bandit_exact_return(ego: Partner, env: CollaborativeBanditEnv, partner: Part
     return float(np.mean(probs[rows, arms] * env.prizes[rows, arms]))
 
 
-def has_exact_return(env_name: str, env_config: dict[str, Any]) -> bool:
-    """Whether `player_return` can score this game exactly (one-step bandits), so it needs no sampled episodes."""
-    return isinstance(envs.make(env_name, **env_config), CollaborativeBanditEnv)
+def check_episodes(episodes: int, env_name: str, env_config: dict[str, Any]) -> None:
+    """ValueError unless `episodes` can score this game: 0 (no sampled episodes) only where the return is exact (one-step bandits)."""
+    if episodes == 0 and not isinstance(envs.make(env_name, **env_config), CollaborativeBanditEnv):
+        raise ValueError(f"episodes=0 scores by the exact expected return, which only the one-step bandits have; {env_name!r} needs episodes >= 1")
 
 
 def player_return(
@@ -78,15 +79,13 @@ def player_return(
     One-step bandits are also scored exactly from the two policies (`exact`); there
     `episodes=0` plays nothing (`mean` and `stderr` NaN). ValueError for `episodes=0` elsewhere.
     """
+    check_episodes(episodes, env_name, env_config)
     env = envs.make(env_name, **env_config)
-    exact = isinstance(env, CollaborativeBanditEnv)
-    if episodes == 0 and not exact:
-        raise ValueError(f"episodes=0 scores by the exact expected return, which only the one-step bandits have; {env_name!r} needs episodes >= 1")
     out = {"mean": math.nan, "stderr": math.nan}
     if episodes:
         scores = play_episodes(env, {ego_agent: ego, partner_agent: partner}, episodes, seed)
         out = {"mean": float(scores.mean()), "stderr": float(scores.std(ddof=1) / np.sqrt(len(scores))) if len(scores) > 1 else 0.0}
-    if exact:
+    if isinstance(env, CollaborativeBanditEnv):
         out["exact"] = bandit_exact_return(ego, env, partner)
     return out
 

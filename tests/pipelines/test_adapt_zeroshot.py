@@ -9,12 +9,14 @@ import pandas as pd
 import pytest
 import torch
 
+from rllib_conv import partners
 from rllib_conv.modules import AGG_HEAD_ID, TASK_ID, ego_id
 from rllib_conv.pipelines.adapt import CURVE_COLUMNS, adapt_curve, run_adaptation
 from rllib_conv.pipelines.adapt_config import AdaptConfig
 from rllib_conv.pipelines.zeroshot import run_zeroshot
 from rllib_conv.training.algorithm import build_ppo_config
 from rllib_conv.training.ego_setup import resolve
+from rllib_conv.training.evaluate import player_return
 from rllib_conv.training.experiment import ExperimentConfig
 from rllib_conv.training.maml import META_MODULES, MetaTrainer, outer_update
 from rllib_conv.training.weights import snapshot
@@ -63,11 +65,7 @@ def test_bandit_curves_without_sampled_episodes_keep_their_exact_returns(bandit_
 
 
 def test_no_sampled_episodes_is_refused_where_no_exact_return_exists() -> None:
-    from rllib_conv.partners import get
-    from rllib_conv.training.evaluate import player_return
-
-    pop = get("blocks-perm")
-    partner = pop.partners[0].build()
+    partner = partners.get("blocks-perm").partners[0].build()
     with pytest.raises(ValueError, match="episodes=0 .* 'blocks' needs episodes >= 1"):
         player_return(partner, "blocks", {}, partner, "player_0", "player_1", episodes=0)
 
