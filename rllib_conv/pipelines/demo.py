@@ -15,9 +15,11 @@ import pandas as pd
 
 from rllib_conv import partners
 from rllib_conv.common.resources import config_file
+from rllib_conv.common.run_folders import trial_folders
 from rllib_conv.envs.bandit import CollaborativeBanditEnv, oracle_marginals
 from rllib_conv.pipelines.train import run
 from rllib_conv.training import experiment
+from rllib_conv.training.checkpoints import last_checkpoint
 from rllib_conv.training.evaluate import load_module, task_probs
 from rllib_conv.training.marginals import bandit_states
 
@@ -51,7 +53,8 @@ def demo(storage: str | Path = "runs", address: str | None = None, overrides: li
     print(pd.DataFrame(rows).to_string(index=False, float_format="{:.3f}".format))
     env = CollaborativeBanditEnv(**pop.env_config)
     obs, mask = bandit_states(pop.env_config)
-    probs = task_probs(load_module(result.checkpoint.path), obs, mask)
+    ego = trial_folders(result.path)[0]  # the trained ego the trial exported (its one seed); the trial's own checkpoint is the packed algorithm's
+    probs = task_probs(load_module(last_checkpoint(ego)), obs, mask)
     truth = oracle_marginals(env.prizes)
     table = pd.DataFrame(
         {

@@ -126,7 +126,7 @@ class EgoTrainable(AlgorithmTrainable):
 
     def _finish(self) -> dict[str, float]:
         """Evaluate every replica and export it as a trained-ego folder `<trial>/seed=<s>/`; return the evaluations
-        (each replica's under `seed=<s>/`, their mean under the plain keys)."""
+        (each replica's under `seed=<s>/`, their mean under the plain keys) and the trial's training time (`wall_s`, `setup_s`)."""
         module = learner_module(self.algo)
         timing = {"wall_s": self.timings.seconds["iterate"], "setup_s": self.timings.seconds["setup"]}  # training, before the evaluations
         evaluations = []
@@ -136,7 +136,7 @@ class EgoTrainable(AlgorithmTrainable):
             evaluations.append(final)
             final = {**final, **timing, "replicas": len(self.replicas)}
             export_replica(plain, rep, replica_folder(self.export, rep.own_seed), final, self.history[r])
-        out = {key: float(np.mean([e[key] for e in evaluations])) for key in evaluations[0]}
+        out = {key: float(np.mean([e[key] for e in evaluations])) for key in evaluations[0]} | timing
         for rep, e in zip(self.replicas, evaluations):
             out.update({f"{REPLICA_PREFIX}{rep.own_seed}/{k}": v for k, v in e.items()})
         return out
