@@ -101,6 +101,16 @@ def test_pair_an_ego_head_with_a_population_member_matches_the_exact_evaluation(
     assert (row["seat_0"], row["seat_1"], row["episodes"]) == (seats[0], seats[1], 50)
 
 
+def test_runs_given_as_relative_paths_load(tiny, tmp_path, monkeypatch, capsys) -> None:
+    """The README writes `runs/...`: RLlib's loader reads a relative path as a URI without a scheme unless it is resolved first."""
+    monkeypatch.chdir(tiny["root"])
+    trial = tiny["trial"].relative_to(tiny["root"])
+    assert main(["pair", f"{trial}:ego@hand-train-1", "bandit-s1-hand:hand-train-1", "--episodes", "5", "--out", str(tmp_path / "p")]) == 0
+    assert main(["marginals", "runs/tiny", "--out", str(tmp_path / "m")]) == 0
+    assert last_line(capsys.readouterr().out) == f"wrote {tmp_path / 'm' / 'tiny.csv'}"
+    assert len(list((tmp_path / "p").glob("*.csv"))) == 1
+
+
 def test_pair_the_task_module_alone_in_the_second_seat(tiny) -> None:
     arms = [4, 1, 2, 3]
     table = pair(PairConfig(seats=[f"bandit_convention:{{arms: {arms}}}", f"{tiny['trial']}:task"], episodes=20))

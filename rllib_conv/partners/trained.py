@@ -111,7 +111,7 @@ class TrainedPolicyPartner(PolicyPartner):
         self.checkpoint = str(path)
         try:
             # The checkpoint names its module class (ours: `TaskModule`); RLlib rebuilds that class.
-            self.module = RLModule.from_checkpoint(path)
+            self.module = RLModule.from_checkpoint(path.resolve())  # RLlib reads a relative path as a URI without a scheme
         except Exception as exc:  # a damaged pickle raises anything from EOFError to UnpicklingError
             raise ValueError(f"partner {name!r}: checkpoint {str(path)!r} cannot be loaded ({type(exc).__name__}: {exc})") from None
         self.module.eval()

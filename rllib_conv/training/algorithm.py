@@ -14,6 +14,7 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from ray.rllib.algorithms.ppo import PPOConfig
@@ -261,7 +262,7 @@ def load_replica_weights(algo: Any, replicas: list[Replica]) -> None:
     """
     if not any(rep.load for rep in replicas):
         return
-    states = {(r, mid): RLModule.from_checkpoint(path).state_dict() for r, rep in enumerate(replicas) for mid, path in rep.load.items()}
+    states = {(r, mid): RLModule.from_checkpoint(Path(path).resolve()).state_dict() for r, rep in enumerate(replicas) for mid, path in rep.load.items()}
 
     def load(learner: Any) -> None:
         stack = learner.module[STACK_ID]

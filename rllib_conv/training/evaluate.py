@@ -95,4 +95,4 @@ def load_module(checkpoint: str | Path) -> ConventionMultiRLModule:
     path = Path(checkpoint) / RL_MODULE_DIR
     if not path.is_dir():
         raise ValueError(f"{str(checkpoint)!r} is not an algorithm checkpoint (no {path.relative_to(checkpoint)})")
-    return MultiRLModule.from_checkpoint(path)
+    return MultiRLModule.from_checkpoint(path.resolve())  # RLlib reads a relative path as a URI without a scheme
