@@ -96,6 +96,14 @@ def module_logits(module: RLModule) -> LogitsFn:
     return logits
 
 
+def load_rl_module(checkpoint: str | Path) -> RLModule:
+    """An RLlib module (single or multi-agent) from its checkpoint folder; the class the checkpoint names is rebuilt.
+
+    The path is made absolute first: RLlib reads a relative one as a URI without a scheme.
+    """
+    return RLModule.from_checkpoint(Path(checkpoint).resolve())
+
+
 @register_kind
 class TrainedPolicyPartner(PolicyPartner):
     """A trained policy module loaded from its RLlib module checkpoint folder (`RLModule.from_checkpoint`)."""
@@ -111,7 +119,7 @@ class TrainedPolicyPartner(PolicyPartner):
         self.checkpoint = str(path)
         try:
             # The checkpoint names its module class (ours: `TaskModule`); RLlib rebuilds that class.
-            self.module = RLModule.from_checkpoint(path.resolve())  # RLlib reads a relative path as a URI without a scheme
+            self.module = load_rl_module(path)
         except Exception as exc:  # a damaged pickle raises anything from EOFError to UnpicklingError
             raise ValueError(f"partner {name!r}: checkpoint {str(path)!r} cannot be loaded ({type(exc).__name__}: {exc})") from None
         self.module.eval()

@@ -14,12 +14,11 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 from ray.rllib.algorithms.ppo import PPOConfig
 from ray.rllib.core.rl_module.multi_rl_module import MultiRLModuleSpec
-from ray.rllib.core.rl_module.rl_module import RLModule, RLModuleSpec
+from ray.rllib.core.rl_module.rl_module import RLModuleSpec
 
 from rllib_conv import envs
 from rllib_conv.common.methods import method
@@ -32,6 +31,7 @@ from rllib_conv.modules.ego_stack import EgoStack
 from rllib_conv.modules.multi import replica_id
 from rllib_conv.modules.partner_schedule import PartnerFunction, RoundRobin, WeightedPartners
 from rllib_conv.modules.stacked_multi import STACK_ID, HeadView, StackedEgoMultiRLModule
+from rllib_conv.partners.trained import load_rl_module
 from rllib_conv.training.batched_env_runner import BatchedEnvRunner
 from rllib_conv.training.ego_setup import EgoSetup
 from rllib_conv.training.lean_env_runner import LeanEnvRunner
@@ -262,7 +262,7 @@ def load_replica_weights(algo: Any, replicas: list[Replica]) -> None:
     """
     if not any(rep.load for rep in replicas):
         return
-    states = {(r, mid): RLModule.from_checkpoint(Path(path).resolve()).state_dict() for r, rep in enumerate(replicas) for mid, path in rep.load.items()}
+    states = {(r, mid): load_rl_module(path).state_dict() for r, rep in enumerate(replicas) for mid, path in rep.load.items()}
 
     def load(learner: Any) -> None:
         stack = learner.module[STACK_ID]

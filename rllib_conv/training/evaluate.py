@@ -8,7 +8,6 @@ from typing import Any
 
 import numpy as np
 import torch
-from ray.rllib.core.rl_module.multi_rl_module import MultiRLModule
 
 from rllib_conv import envs
 from rllib_conv.common.run_folders import RL_MODULE_DIR
@@ -16,7 +15,7 @@ from rllib_conv.envs.bandit import CollaborativeBanditEnv
 from rllib_conv.modules.multi import ConventionMultiRLModule
 from rllib_conv.partners.base import Partner
 from rllib_conv.partners.play import play_episodes
-from rllib_conv.partners.trained import PolicyPartner
+from rllib_conv.partners.trained import PolicyPartner, load_rl_module
 
 
 def _tensors(obs: np.ndarray, mask: np.ndarray | None) -> tuple[torch.Tensor, torch.Tensor | None]:
@@ -95,4 +94,4 @@ def load_module(checkpoint: str | Path) -> ConventionMultiRLModule:
     path = Path(checkpoint) / RL_MODULE_DIR
     if not path.is_dir():
         raise ValueError(f"{str(checkpoint)!r} is not an algorithm checkpoint (no {path.relative_to(checkpoint)})")
-    return MultiRLModule.from_checkpoint(path.resolve())  # RLlib reads a relative path as a URI without a scheme
+    return load_rl_module(path)
