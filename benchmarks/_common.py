@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import datetime as dt
+import functools
 import json
 import os
 import platform
 import statistics
 import sys
+import tempfile
 import time
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
@@ -15,7 +17,8 @@ from typing import Any, TypeVar
 
 T = TypeVar("T")
 
-RESULTS = Path(__file__).resolve().parent / "results"
+BENCHMARKS = Path(__file__).resolve().parent
+RESULTS = BENCHMARKS / "results"
 
 
 def machine() -> dict[str, Any]:
@@ -65,3 +68,16 @@ def median_seconds(ways: dict[str, Callable[[], Any]], rounds: int) -> dict[str,
         ways[name]()
         times[name].append(time.perf_counter() - start)
     return {name: statistics.median(t) for name, t in times.items()}
+
+
+@functools.cache
+def benchmarks_only_folder() -> Path:
+    """A temporary folder that holds nothing but a link to this checkout's `benchmarks` package.
+
+    A child run as `python -m benchmarks.<name>` from it imports these scripts (`-m` puts the
+    working folder first on the path) and everything else, `rllib_conv` included, from
+    PYTHONPATH: how one script measures an older commit's code (a git worktree) beside today's.
+    """
+    folder = Path(tempfile.mkdtemp(prefix="benchmarks-only-"))
+    (folder / "benchmarks").symlink_to(BENCHMARKS, target_is_directory=True)
+    return folder

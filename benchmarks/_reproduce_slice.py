@@ -2,7 +2,8 @@
 
     python benchmarks/_reproduce_slice.py GAME OUT --populations P ... [--methods M ...] [--train-steps N] [--seeds S] [--no-zeroshot]
 
-Uses only what the code before and after the speed work both have: `plan_for`, `narrow` and
+`reproduce_walltime` runs it by its file path in the compared code's folder, so it imports
+nothing from `benchmarks`. Uses only what the code before and after the speed work both have: `plan_for`, `narrow` and
 `Reproduction` importable from `rllib_conv.pipelines.reproduce`. Prints one JSON line: the
 wall seconds of the whole slice and of each stage.
 """

@@ -7,7 +7,7 @@ machine's speed falls on both alike. Without reuse, Tune is asked for `reuse_act
 every trial (what it did before 2026-12-03). Prints the wall times,
 the workers used and the ratio of medians; writes `benchmarks/results/actor_reuse.json`.
 
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/actor_reuse.py [--pairs 8] [--rounds 2]
+    OMP_NUM_THREADS=1 .venv/bin/python -m benchmarks.actor_reuse [--pairs 8] [--rounds 2]
 """
 
 from __future__ import annotations
@@ -15,7 +15,6 @@ from __future__ import annotations
 import argparse
 import json
 import statistics
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -25,13 +24,11 @@ import pandas as pd
 import ray
 from ray import tune
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import alternating, write_result  # noqa: E402
-
-from rllib_conv.common import config_files  # noqa: E402
-from rllib_conv.common.resources import config_file  # noqa: E402
-from rllib_conv.pipelines.selfplay import train_population  # noqa: E402
-from rllib_conv.pipelines.selfplay_config import SelfPlayConfig  # noqa: E402
+from benchmarks._common import alternating, write_result
+from rllib_conv.common import config_files
+from rllib_conv.common.resources import config_file
+from rllib_conv.pipelines.selfplay import train_population
+from rllib_conv.pipelines.selfplay_config import SelfPlayConfig
 
 TUNE_CONFIG = tune.TuneConfig
 

@@ -7,25 +7,22 @@ falls on both alike. The foreach path is what `FusedAdamStep` used before 2026-1
 is reached by swapping the module's `adam` for one that asks for it (same arguments
 otherwise). Prints medians and their ratio; writes `benchmarks/results/adam_kernel.json`.
 
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/adam_kernel.py [--repeats 8] [--games bandit blocks hanabi]
+    OMP_NUM_THREADS=1 .venv/bin/python -m benchmarks.adam_kernel [--repeats 8] [--games bandit blocks hanabi]
 """
 
 from __future__ import annotations
 
 import argparse
 import functools
-import sys
 from pathlib import Path
 from typing import Any
 
 import pandas as pd
 import ray
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import median_seconds, write_result  # noqa: E402
-from train_throughput import fixed_update, ours, population_of  # noqa: E402
-
-import rllib_conv.learners.fused_step as fused_step  # noqa: E402
+import rllib_conv.learners.packed.fused_step as fused_step
+from benchmarks._common import median_seconds, write_result
+from benchmarks.train_throughput import fixed_update, ours, population_of
 
 KERNELS = ("foreach", "fused")
 

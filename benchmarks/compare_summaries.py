@@ -1,6 +1,6 @@
 """Does a re-run reproduce the same science? Every headline number of a new `reproduce_summary` file against an old one.
 
-    python benchmarks/compare_summaries.py OLD.json NEW.json --name NAME
+    python -m benchmarks.compare_summaries OLD.json NEW.json --name NAME
 
 For each number both files hold (adaptation AUC, start and end return; zero-shot return;
 marginal distance; per population and method), prints the old interval, the new mean and
@@ -14,11 +14,9 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import write_result  # noqa: E402
+from benchmarks._common import write_result
 
 METRICS = {"adaptation": ("auc", "start", "end"), "zeroshot": ("return",), "marginals": ("distance",)}
 

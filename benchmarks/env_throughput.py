@@ -4,24 +4,21 @@ Measures each built-in game twice, side by side in one run: the raw PettingZoo e
 the same env through the RLlib adapter (`PettingZooMultiAgentEnv`) that training uses.
 Prints a table and writes `benchmarks/results/env_throughput.json`.
 
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/env_throughput.py [--steps 20000]
+    OMP_NUM_THREADS=1 .venv/bin/python -m benchmarks.env_throughput [--steps 20000]
 """
 
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 
 import numpy as np
 import pandas as pd
 from pettingzoo.utils.env import AECEnv
 
-sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parent))
-from _common import write_result  # noqa: E402
-
-from rllib_conv import envs  # noqa: E402
-from rllib_conv.envs.rllib_adapter import PettingZooMultiAgentEnv  # noqa: E402
+from benchmarks._common import write_result
+from rllib_conv import envs
+from rllib_conv.envs.rllib_adapter import PettingZooMultiAgentEnv
 
 GAMES = {"bandit": {"symmetric": 2}, "blocks": {}, "hanabi": {}}
 

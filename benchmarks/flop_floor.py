@@ -16,13 +16,12 @@ and leaves out the partners' networks (self-play partners act through networks a
 the ego's task module), self-play, adaptation and evaluation: a lower bound of the stage,
 and of the plan. Writes `benchmarks/results/flop_floor.json`.
 
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/flop_floor.py [--repeats 5] [--games bandit blocks hanabi]
+    OMP_NUM_THREADS=1 .venv/bin/python -m benchmarks.flop_floor [--repeats 5] [--games bandit blocks hanabi]
 """
 
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -31,13 +30,11 @@ import ray
 import torch
 from torch.utils.flop_counter import FlopCounterMode
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import median_seconds, write_result  # noqa: E402
-from train_throughput import fixed_update, ours, population_of  # noqa: E402
-
-from rllib_conv.envs.defaults import GAME_DEFAULTS  # noqa: E402
-from rllib_conv.pipelines.plans import plan_for  # noqa: E402
-from rllib_conv.training.replica_steps import replica_env_steps  # noqa: E402
+from benchmarks._common import median_seconds, write_result
+from benchmarks.train_throughput import fixed_update, ours, population_of
+from rllib_conv import envs
+from rllib_conv.pipelines.plans import plan_for
+from rllib_conv.training.replica_steps import replica_env_steps
 
 SEEDS = 3  # replicas per trial, as `train` packs a 3-seed experiment
 TARGET_MINUTES = {"bandit": 15, "blocks": 60, "hanabi": 30}  # issue 22: the whole plan's wall time
@@ -61,7 +58,7 @@ def peak_gflops(rows: int, hidden: int, repeats: int = 20) -> float:
 def plan_ego_steps(game: str, seeds: int = 3) -> int:
     """Env steps of every ego the full plan of `game` trains (each population's methods, then the self-play methods)."""
     plan = plan_for(game, seeds=seeds)
-    default = GAME_DEFAULTS[game]["timesteps"]
+    default = envs.game(game).training_defaults().timesteps
     steps = sum(
         len(variants) * plan.population_overrides.get(population, {}).get("run", {}).get("timesteps", default)
         for population, variants in plan.populations.items()
@@ -85,7 +82,7 @@ def measure(game: str, repeats: int, folder: Path) -> dict[str, Any]:
         seconds = median_seconds({"sample": runner.sample, "update": update}, repeats)
     finally:
         algo.stop()
-    hidden = GAME_DEFAULTS[game]["hidden"]
+    hidden = envs.game(game).training_defaults().hidden
     peak = peak_gflops(config.minibatch_size, hidden)
     per_step = (sample_flops + update_flops) / steps
     row = {

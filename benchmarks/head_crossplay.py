@@ -9,28 +9,25 @@ episodes per pair), of:
 Where the task module alone scores below the heads, mixing the conventions move by move
 costs more than committing to any one of them.
 
-    .venv/bin/python benchmarks/head_crossplay.py ROOT/blocks/runs/blocks-selfplay__modular-lam0.5 \\
+    .venv/bin/python -m benchmarks.head_crossplay ROOT/blocks/runs/blocks-selfplay__modular-lam0.5 \\
         --population ROOT/blocks/populations/blocks-selfplay --name head_crossplay_blocks_selfplay
 """
 
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 import pandas as pd
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import write_result  # noqa: E402
-
-from rllib_conv import envs, partners  # noqa: E402
-from rllib_conv.common.run_folders import trial_folders  # noqa: E402
-from rllib_conv.modules.multi import ego_id  # noqa: E402
-from rllib_conv.partners.play import play_episodes  # noqa: E402
-from rllib_conv.partners.trained import PolicyPartner  # noqa: E402
-from rllib_conv.training.checkpoints import last_checkpoint  # noqa: E402
-from rllib_conv.training.evaluate import ego_head_partner, load_module  # noqa: E402
+from benchmarks._common import write_result
+from rllib_conv import envs, partners
+from rllib_conv.common.run_folders import trial_folders
+from rllib_conv.modules.multi import ego_id
+from rllib_conv.partners.episodes import play_episodes
+from rllib_conv.partners.trained import PolicyPartner
+from rllib_conv.training.checkpoints import last_checkpoint
+from rllib_conv.training.evaluate import ego_head_partner, load_module
 
 TASK_ONLY = "task module alone"
 BEST = "best training head"

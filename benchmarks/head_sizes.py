@@ -10,32 +10,29 @@ action) and *convention* states (more than one):
 Without the head penalty the heads push the rule moves about as hard as the task module;
 with it they hold almost nothing there and keep what differs between partners.
 
-    .venv/bin/python benchmarks/head_sizes.py ROOT/blocks/runs/blocks-perm__modular-lam0.5 \\
+    .venv/bin/python -m benchmarks.head_sizes ROOT/blocks/runs/blocks-perm__modular-lam0.5 \\
         ROOT/blocks/runs/blocks-perm__modular-lam0.5-hl0.01 --name head_sizes_blocks
 """
 
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 import pandas as pd
 import torch
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import write_result  # noqa: E402
-
-from rllib_conv import partners  # noqa: E402
-from rllib_conv.common.run_folders import trial_folders  # noqa: E402
-from rllib_conv.learners.marginal_learner import head_size  # noqa: E402
-from rllib_conv.modules.multi import ego_id  # noqa: E402
-from rllib_conv.training.checkpoints import last_checkpoint  # noqa: E402
-from rllib_conv.training.evaluate import load_module  # noqa: E402
-from rllib_conv.training.experiment import trial_config  # noqa: E402
-from rllib_conv.training.marginals import (
-    marginal_states,  # noqa: E402
-    optimal_actions,  # noqa: E402
+from benchmarks._common import write_result
+from rllib_conv import partners
+from rllib_conv.common.run_folders import trial_folders
+from rllib_conv.learners.head_penalty import head_size
+from rllib_conv.modules.multi import ego_id
+from rllib_conv.training.checkpoints import last_checkpoint
+from rllib_conv.training.evaluate import load_module
+from rllib_conv.training.experiment import trial_config
+from rllib_conv.training.marginal_distance import (
+    marginal_states,
+    optimal_actions,
 )
 
 

@@ -9,23 +9,20 @@ then a t-interval over seeds (`analysis.summaries.seed_summary`; n = seeds).
 Writes `benchmarks/results/reproduce_<name>.json` with the reproduce command recorded in
 the folder's plan.json.
 
-    .venv/bin/python benchmarks/reproduce_summary.py ROOT/bandit --name bandit
+    .venv/bin/python -m benchmarks.reproduce_summary ROOT/bandit --name bandit
 """
 
 from __future__ import annotations
 
 import argparse
 import re
-import sys
 from pathlib import Path
 
 import pandas as pd
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import write_result  # noqa: E402
-
-from analysis import loaders  # noqa: E402
-from analysis.summaries import adaptation_auc, bayes_optimal_return, seed_summary  # noqa: E402
+from analysis import loaders
+from analysis.summaries import adaptation_auc, bayes_optimal_return, seed_summary
+from benchmarks._common import write_result
 
 BANDIT_CONTEXTS = 4
 BY = ["population", "label"]

@@ -1,7 +1,7 @@
 """Wall time of fixed `reproduce` slices, by the code before the speed work (a git worktree of its commit) and now.
 
-    OMP_NUM_THREADS=1 python benchmarks/reproduce_walltime.py [--old-commit 63f6b75] [--slices bandit blocks] [--work DIR] [--name NAME]
-    python benchmarks/reproduce_walltime.py --measured reproduce/bandit --old-summary benchmarks/results/reproduce_bandit_extended.json [--name NAME]
+    OMP_NUM_THREADS=1 python -m benchmarks.reproduce_walltime [--old-commit 63f6b75] [--slices bandit blocks] [--work DIR] [--name NAME]
+    python -m benchmarks.reproduce_walltime --measured reproduce/bandit --old-summary benchmarks/results/reproduce_bandit_extended.json [--name NAME]
 
 Each slice runs from an empty folder, old code then new, one after the other on the same
 machine (it is shared and noisy: compare the ratio, not the seconds). Printed and written
@@ -29,9 +29,8 @@ from datetime import datetime
 from pathlib import Path
 from typing import Any
 
-from _common import RESULTS, machine, write_result
-
 from analysis import loaders
+from benchmarks._common import RESULTS, machine, write_result
 
 REPO = Path(__file__).resolve().parents[1]
 SLICE_SCRIPT = REPO / "benchmarks" / "_reproduce_slice.py"
@@ -79,6 +78,8 @@ def kept_slices(rows: list[dict[str, Any]], name: str) -> list[dict[str, Any]]:
 def run_slice(code: Path, args: list[str], out: Path) -> dict[str, Any]:
     """Run a slice with the rllib_conv of `code`; return its wall seconds and stage seconds."""
     env = {**os.environ, "PYTHONPATH": str(code), "OMP_NUM_THREADS": "1", "RAY_ADDRESS": ""}
+    # Run by its file, not with -m: it must start in `code`'s folder (an old commit may read its
+    # plans by relative path), where `benchmarks` would be that commit's; it imports only rllib_conv.
     proc = subprocess.run([sys.executable, str(SLICE_SCRIPT), args[0], str(out), *args[1:]], cwd=code, env=env, capture_output=True, text=True)
     line = next((ln for ln in proc.stdout.splitlines() if ln.startswith("SLICE ")), None)
     if proc.returncode != 0 or line is None:

@@ -8,13 +8,12 @@ For each game, in one run:
   at the end (1000 episodes) against the same gate.
 Writes `benchmarks/results/selfplay_<games>.json`.
 
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/selfplay.py --games bandit blocks hanabi
+    OMP_NUM_THREADS=1 .venv/bin/python -m benchmarks.selfplay --games bandit blocks hanabi
 """
 
 from __future__ import annotations
 
 import argparse
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -30,17 +29,15 @@ from ray.rllib.examples.rl_modules.classes.action_masking_rlm import (
     ActionMaskingTorchRLModule,
 )
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import write_result  # noqa: E402
-
-from rllib_conv import envs  # noqa: E402
-from rllib_conv.common import config_files  # noqa: E402
-from rllib_conv.common.resources import config_file  # noqa: E402
-from rllib_conv.envs.rllib_adapter import RLlibGame, game_env_config  # noqa: E402
-from rllib_conv.partners.play import play_episodes  # noqa: E402
-from rllib_conv.partners.trained import PolicyPartner  # noqa: E402
-from rllib_conv.pipelines.selfplay import SeatMapping, seat_module_id, train_population  # noqa: E402
-from rllib_conv.pipelines.selfplay_config import SelfPlayConfig  # noqa: E402
+from benchmarks._common import write_result
+from rllib_conv import envs
+from rllib_conv.common import config_files
+from rllib_conv.common.resources import config_file
+from rllib_conv.envs.rllib_adapter import RLlibGame, game_env_config
+from rllib_conv.partners.episodes import play_episodes
+from rllib_conv.partners.trained import PolicyPartner
+from rllib_conv.pipelines.selfplay import SeatMapping, seat_module_id, train_population
+from rllib_conv.pipelines.selfplay_config import SelfPlayConfig
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -2,42 +2,40 @@
 
 For each game, two algorithms of the same self-play pair (`tune_configs/selfplay_<game>.yaml`,
 pair 0), one sampling through `BatchedEnvRunner` and one through RLlib's episodes
-(`run.batched_sampling: false`, the self-play path before 2026-12-03), take turns at
+(`LeanEnvRunner`, the self-play path before 2026-12-03), take turns at
 `train()` (RLlib, batched, batched, RLlib, ...), so drift in the machine's speed falls on
 both alike. Gate checks are not part of `train()`. Prints the median seconds per iteration,
 the env steps/s and the ratio; writes `benchmarks/results/selfplay_sampling.json`.
 
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/selfplay_sampling.py [--iterations 6] [--games bandit blocks hanabi]
+    OMP_NUM_THREADS=1 .venv/bin/python -m benchmarks.selfplay_sampling [--iterations 6] [--games bandit blocks hanabi]
 """
 
 from __future__ import annotations
 
 import argparse
-import sys
-from pathlib import Path
 
 import pandas as pd
 import ray
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import median_seconds, write_result  # noqa: E402
+from benchmarks._common import median_seconds, write_result
+from rllib_conv.common import config_files
+from rllib_conv.common.resources import config_file
+from rllib_conv.pipelines.selfplay import build_selfplay_config
+from rllib_conv.pipelines.selfplay_config import SelfPlayConfig
+from rllib_conv.training.batched_env_runner import BatchedEnvRunner
+from rllib_conv.training.lean_env_runner import LeanEnvRunner
 
-from rllib_conv.common import config_files  # noqa: E402
-from rllib_conv.common.resources import config_file  # noqa: E402
-from rllib_conv.pipelines.selfplay import build_selfplay_config  # noqa: E402
-from rllib_conv.pipelines.selfplay_config import SelfPlayConfig  # noqa: E402
-
-PATHS = {"rllib": False, "batched": True}  # name -> run.batched_sampling
+PATHS = {"rllib": LeanEnvRunner, "batched": BatchedEnvRunner}  # name -> env runner class
 
 
 def iteration_times(game: str, iterations: int) -> tuple[dict[str, float], int]:
     """Median seconds of one `train()` per path, and the env steps of one iteration."""
     algos = {}
     try:
-        for name, batched in PATHS.items():
-            raw = config_files.load(config_file(f"selfplay_{game}.yaml"), [f"run.batched_sampling={batched}"], schema=SelfPlayConfig)
+        for name, runner in PATHS.items():
+            raw = config_files.load(config_file(f"selfplay_{game}.yaml"), [], schema=SelfPlayConfig)
             cfg = SelfPlayConfig.model_validate(raw).resolve()
-            algos[name] = build_selfplay_config(cfg).build_algo()
+            algos[name] = build_selfplay_config(cfg).env_runners(env_runner_cls=runner).build_algo()
             algos[name].train()  # warm-up
         return median_seconds({name: algo.train for name, algo in algos.items()}, iterations), cfg.ppo.rollout_per_partner
     finally:

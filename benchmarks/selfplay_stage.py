@@ -6,7 +6,7 @@ order old, new, new, old, ... (drift in the machine's speed falls on both alike)
 wall times and the ratio of medians, and how many pairs' kept seats have the same weights in
 every run of the same code; writes `benchmarks/results/selfplay_stage_<game>.json`.
 
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/selfplay_stage.py [--game bandit] [--old-commit 66f3779] [--rounds 2] [--work DIR]
+    OMP_NUM_THREADS=1 .venv/bin/python -m benchmarks.selfplay_stage [--game bandit] [--old-commit 66f3779] [--rounds 2] [--work DIR]
 """
 
 from __future__ import annotations
@@ -23,8 +23,9 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from _common import alternating, write_result
-from reproduce_walltime import REPO, worktree
+
+from benchmarks._common import alternating, write_result
+from benchmarks.reproduce_walltime import REPO, worktree
 
 OLD_COMMIT = "66f3779"  # before self-play sampled through BatchedEnvRunner and Tune reused workers
 

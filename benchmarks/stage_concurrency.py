@@ -11,7 +11,7 @@ stage's wall time. On one machine the 2-node cluster shares the same cores, so i
 time shows concurrency, not a speed-up; on real nodes the trials would spread the same way.
 Writes `benchmarks/results/stage_concurrency.json`.
 
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/stage_concurrency.py [--experiments 8] [--timesteps 1024] [--node-cpus 2]
+    OMP_NUM_THREADS=1 .venv/bin/python -m benchmarks.stage_concurrency [--experiments 8] [--timesteps 1024] [--node-cpus 2]
 """
 
 from __future__ import annotations
@@ -28,8 +28,7 @@ from typing import Any
 
 import pandas as pd
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import write_result  # noqa: E402
+from benchmarks._common import write_result
 
 STAGE = """
 import json, sys, time

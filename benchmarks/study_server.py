@@ -1,6 +1,6 @@
 """Load and faults of the study server (`rllib-conv play`), on loopback, with simulated participants.
 
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/study_server.py [--participants 100] [--clients 2]
+    OMP_NUM_THREADS=1 .venv/bin/python -m benchmarks.study_server [--participants 100] [--clients 2]
         [--fault-participants 20] [--run RUN]
 
 - load: `--participants` simulated participants (rllib_conv.play.simulated) enrol at once
@@ -28,7 +28,6 @@ import argparse
 import asyncio
 import os
 import sqlite3
-import sys
 import tempfile
 import time
 from concurrent.futures import ProcessPoolExecutor
@@ -37,11 +36,9 @@ from pathlib import Path
 import httpx
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import write_result  # noqa: E402
-
-from rllib_conv.play.simulated import Outcome, ServerProcess, audit, simulate  # noqa: E402
-from rllib_conv.play.store import DB_FILE  # noqa: E402
+from benchmarks._common import write_result
+from rllib_conv.play.simulated import Outcome, ServerProcess, audit, simulate
+from rllib_conv.play.store import DB_FILE
 
 TRIES = 30
 
@@ -72,7 +69,8 @@ def latencies(outcomes: list[Outcome]) -> dict[str, dict[str, float]]:
 
 def server_args(out: Path, run: str | None, port: int = 0) -> list[str]:
     agent = [run] if run else ["--agent", "agent=oracle"]
-    return [*agent, "--conditions", "agent,human", "--port", str(port), "--out", str(out), "--admin-token", "benchmark-token"]
+    # Every simulated participant comes from loopback: one client address, so no enrolment limit.
+    return [*agent, "--conditions", "agent,human", "--port", str(port), "--out", str(out), "--admin-token", "benchmark-token", "--enrol-limit", "0"]
 
 
 def cpu_s(pid: int) -> float:

@@ -11,7 +11,7 @@ trial's eval.json: building the algorithm, env runners, modules), mean trial tra
 result syncing) = sweep wall - trials' set-up and training / 2 trials in parallel.
 Writes `benchmarks/results/sweep_overhead.json`.
 
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/sweep_overhead.py [--timesteps 2048]
+    OMP_NUM_THREADS=1 .venv/bin/python -m benchmarks.sweep_overhead [--timesteps 2048]
 """
 
 from __future__ import annotations
@@ -28,8 +28,7 @@ from pathlib import Path
 import pandas as pd
 import yaml
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import write_result  # noqa: E402
+from benchmarks._common import write_result
 
 PARALLEL = 2
 

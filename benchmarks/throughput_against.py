@@ -1,6 +1,6 @@
 """Ego-training env steps/s per trial (3 packed seeds, `train_throughput.py`'s `ours_3`) by an older commit and now, side by side.
 
-    OMP_NUM_THREADS=1 python benchmarks/throughput_against.py --old-commit COMMIT [--games blocks hanabi] [--methods modular agg] [--seconds 20] [--rounds 3] [--name NAME]
+    OMP_NUM_THREADS=1 python -m benchmarks.throughput_against --old-commit COMMIT [--games blocks hanabi] [--methods modular agg] [--seconds 20] [--rounds 3] [--name NAME]
 
 Each measurement is a fresh process with the rllib_conv of either a git worktree of
 `--old-commit` or this checkout, the two alternating (A B, B A, ...) so that the shared
@@ -22,11 +22,11 @@ from pathlib import Path
 
 import pandas as pd
 import ray
-from _common import alternating, write_result
-from reproduce_walltime import REPO, worktree
-from train_throughput import ours, population_of, steps_per_second
 
-HERE = Path(__file__).resolve()
+from benchmarks._common import alternating, benchmarks_only_folder, write_result
+from benchmarks.reproduce_walltime import REPO, worktree
+from benchmarks.train_throughput import ours, population_of, steps_per_second
+
 GAMES = ("bandit", "blocks", "hanabi")
 METHODS = ("modular", "agg", "no_task_logits", "maml")
 
@@ -39,10 +39,10 @@ def measure(game: str, method: str, seconds: float) -> float:
 
 
 def run_child(code: Path, game: str, method: str, seconds: float) -> float:
-    """`measure` in a fresh process whose rllib_conv is `code`'s."""
+    """`measure` in a fresh process whose rllib_conv is `code`'s (and whose benchmark scripts are this checkout's)."""
     env = {**os.environ, "PYTHONPATH": str(code), "OMP_NUM_THREADS": "1", "RAY_ADDRESS": ""}
-    command = [sys.executable, str(HERE), "--child", game, "--methods", method, "--seconds", str(seconds)]
-    proc = subprocess.run(command, cwd=tempfile.gettempdir(), env=env, capture_output=True, text=True)
+    command = [sys.executable, "-m", "benchmarks.throughput_against", "--child", game, "--methods", method, "--seconds", str(seconds)]
+    proc = subprocess.run(command, cwd=benchmarks_only_folder(), env=env, capture_output=True, text=True)
     line = next((ln for ln in proc.stdout.splitlines() if ln.startswith("STEPS ")), None)
     if proc.returncode != 0 or line is None:
         raise RuntimeError(f"measuring {game} ({method}) with {code} failed:\n{(proc.stdout + proc.stderr)[-4000:]}")

@@ -6,7 +6,7 @@ For each game (bandit with 2 symmetric contexts, blocks, Hanabi), in one run:
 - `ours_3`: three seeds packed as replicas of one algorithm (how `train` runs an
   experiment's seeds), counted in the moves of all three replicas' own game copies, as
   training budgets count them (each replica trains as alone);
-- `ours_3_episodes`: the same through RLlib's episode objects (`run.batched_sampling: false`),
+- `ours_3_episodes`: the same through RLlib's episode objects (`LeanEnvRunner`, the reference),
   how every ego sampled before `BatchedEnvRunner` (same batches, same weights);
 - `ours_10` (bandit only): ten seeds packed, as a 10-seed experiment's trial holds them
   when nothing else runs beside it;
@@ -21,14 +21,13 @@ For each game (bandit with 2 symmetric contexts, blocks, Hanabi), in one run:
 Timed over whole training iterations after one warm-up iteration. Writes
 `benchmarks/results/train_throughput.json`.
 
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/train_throughput.py [--seconds 30] [--games bandit blocks hanabi]
+    OMP_NUM_THREADS=1 .venv/bin/python -m benchmarks.train_throughput [--seconds 30] [--games bandit blocks hanabi]
 """
 
 from __future__ import annotations
 
 import argparse
 import functools
-import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -44,21 +43,20 @@ from ray.rllib.examples.rl_modules.classes.action_masking_rlm import (
     ActionMaskingTorchRLModule,
 )
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import write_result  # noqa: E402
-from env_throughput import adapter_steps_per_second  # noqa: E402
-
-from rllib_conv import partners  # noqa: E402
-from rllib_conv.envs.rllib_adapter import to_rllib  # noqa: E402
-from rllib_conv.partners.blocks import (  # noqa: E402
+from benchmarks._common import write_result
+from benchmarks.env_throughput import adapter_steps_per_second
+from rllib_conv import partners
+from rllib_conv.envs.rllib_adapter import to_rllib
+from rllib_conv.partners.blocks import (
     TEST_PERMUTATIONS,
     TRAIN_PERMUTATIONS,
     PermutationPartner,
 )
-from rllib_conv.training.algorithm import Replica, build_ppo_config  # noqa: E402
-from rllib_conv.training.ego_setup import resolve  # noqa: E402
-from rllib_conv.training.experiment import ExperimentConfig  # noqa: E402
-from rllib_conv.training.replica_steps import replica_env_steps  # noqa: E402
+from rllib_conv.training.algorithm import Replica, build_ppo_config
+from rllib_conv.training.ego_setup import resolve
+from rllib_conv.training.experiment import ExperimentConfig
+from rllib_conv.training.lean_env_runner import LeanEnvRunner
+from rllib_conv.training.replica_steps import replica_env_steps
 
 
 def _blocks_four(tmp: Path) -> str:
@@ -72,9 +70,9 @@ def _blocks_four(tmp: Path) -> str:
 
 def ours(population: str, seeds: int, batched: bool = True, method: str = "modular") -> PPOConfig:
     """The ego's config (paper hyperparameters; `method`, the modular ego with lam 0.5 by default) for `population`, `seeds` seeds packed as replicas."""
-    run = {"batched_sampling": batched}
     lam = {"lam": 0.5} if method == "modular" else {}
-    return build_ppo_config([Replica(resolve(ExperimentConfig(population=population, method=method, seed=s, run=run, **lam))) for s in range(seeds)])
+    config = build_ppo_config([Replica(resolve(ExperimentConfig(population=population, method=method, seed=s, **lam))) for s in range(seeds)])
+    return config if batched else config.env_runners(env_runner_cls=LeanEnvRunner)
 
 
 def rllib_default(env: str, env_config: dict) -> PPOConfig:
