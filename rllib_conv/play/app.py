@@ -4,8 +4,11 @@
     GET  /admin                   the admin page (asks for the admin token)
     GET  /static/NAME             the pages' scripts and styles (only the files in STATIC_FILES)
     GET  /api/info                the game and the consent text
-    POST /api/participants        {"consent": true, "participant": ID?} -> {participant, token, view}
-                                  (an ID seen before resumes that participant's session)
+    GET  /favicon.ico             the pages' icon (browsers ask for it)
+    POST /api/participants        {"consent": true, "participant": ID?, "token": T?} -> {participant, token, view}
+                                  (an ID seen before resumes only with its token T, which the
+                                  page keeps; without it: 409, never that participant's token;
+                                  at most `enrol_limit` per client address a minute, then 429)
     GET  /api/session?token=T     the participant's view
     POST /api/move                {"token": T, "step": N, "arm": 1..4} (bandit) or {..., "action": 0..5} (blocks)
     WS   /api/live?token=T        the participant's view, pushed after every change that concerns them
@@ -15,9 +18,10 @@
 
 Every error is `{"error": "<sentence>"}` with its status: 400 (malformed: not JSON, wrong
 types or values), 401/403 (no or a wrong token), 404 (no such page), 405 (wrong method),
-408/413 (a body too slow or too large, `limits.py`), 409 (not now: out of turn, already
-played, session over), 415 (a body that is not JSON), 503 (the database could not be
-written: nothing was played). Nothing in a participant's page or answer names a
+408/413/431 (a body too slow or too large, headers too large, `limits.py`), 409 (not now:
+out of turn, already played, session over, an id enrolled in another browser), 415 (a body
+that is not JSON), 429 (too many enrolments from one address), 503 (the database could not
+be written: nothing was played). Nothing in a participant's page or answer names a
 condition or describes an agent: that is the admin API's.
 
 Requests run on one event loop and change the study synchronously (a few hundred
@@ -44,13 +48,19 @@ from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from rllib_conv.play.export import participants_csv, table_csv
 from rllib_conv.play.limits import REQUEST_TIMEOUT_S, BodyLimits
+from rllib_conv.play.rate_limit import RateLimit
 from rllib_conv.play.room import PlayError
 from rllib_conv.play.study import Study
 
 log = logging.getLogger(__name__)
 
-STATIC_TYPES = {".html": "text/html; charset=utf-8", ".js": "text/javascript; charset=utf-8", ".css": "text/css; charset=utf-8"}
-STATIC_FILES = ("index.html", "admin.html", "app.js", "admin.js", "style.css")
+STATIC_TYPES = {
+    ".html": "text/html; charset=utf-8",
+    ".js": "text/javascript; charset=utf-8",
+    ".css": "text/css; charset=utf-8",
+    ".svg": "image/svg+xml",
+}
+STATIC_FILES = ("index.html", "admin.html", "app.js", "admin.js", "style.css", "favicon.svg")
 # The pages load nothing from elsewhere; no referrer carries the participant id in the URL away.
 PAGE_HEADERS = {
     "Cache-Control": "no-store",
@@ -59,6 +69,8 @@ PAGE_HEADERS = {
     "Content-Security-Policy": "default-src 'self'; connect-src 'self'; frame-ancestors 'none'",
 }
 SWEEP_S = 5.0
+MIN_ADMIN_TOKEN = 8
+DEFAULT_ENROL_LIMIT = 20  # enrolments per client address per minute (`--enrol-limit`)
 
 
 def static_file(name: str) -> bytes:
@@ -83,17 +95,27 @@ async def json_body(request: Request) -> dict[str, Any]:
         raise PlayError(415, f"the request body must be JSON sent as Content-Type: application/json, got {kind or 'no Content-Type'!r}")
     try:
         body = json.loads(await request.body())
-    except (json.JSONDecodeError, UnicodeDecodeError, RecursionError):
-        raise PlayError(400, "the request body must be a JSON object") from None
+    except (ValueError, RecursionError):  # JSONDecodeError, UnicodeDecodeError, and ints past Python's digit limit
+        raise PlayError(400, "the request body must be a JSON object (numbers of at most 4300 digits)") from None
     if not isinstance(body, dict):
         raise PlayError(400, f"the request body must be a JSON object, got {type(body).__name__}")
     return body
 
 
-def build_app(study: Study, admin_token: str, sweep_s: float = SWEEP_S, request_timeout_s: float = REQUEST_TIMEOUT_S) -> Any:
-    """The ASGI app serving `study` (module docstring), inside `limits.BodyLimits` (bodies within `request_timeout_s`)."""
-    if len(admin_token) < 8:
-        raise ValueError("--admin-token must be at least 8 characters")
+def build_app(
+    study: Study,
+    admin_token: str,
+    sweep_s: float = SWEEP_S,
+    request_timeout_s: float = REQUEST_TIMEOUT_S,
+    enrol_limit: int = DEFAULT_ENROL_LIMIT,
+) -> Any:
+    """The ASGI app serving `study` (module docstring), inside `limits.BodyLimits` (bodies within `request_timeout_s`).
+
+    `enrol_limit`: enrolment requests one client address may make per minute (0: no limit).
+    """
+    if len(admin_token) < MIN_ADMIN_TOKEN:
+        raise ValueError(f"--admin-token must be at least {MIN_ADMIN_TOKEN} characters")
+    enrolments = RateLimit(enrol_limit)
 
     def page(name: str) -> Any:
         kind = STATIC_TYPES["." + name.rsplit(".", 1)[1]]
@@ -114,9 +136,16 @@ def build_app(study: Study, admin_token: str, sweep_s: float = SWEEP_S, request_
         return ok({"game": s.game, "tries": s.tries, "games": s.games, "new_task": s.new_task, "consent": s.consent})
 
     async def enrol(request: Request) -> Response:
+        wait = enrolments.wait(request.client.host if request.client else "")
+        if wait > 0:
+            seconds = max(1, round(wait))
+            raise PlayError(429, f"too many enrolments from your network; please try again in {seconds} seconds", {"Retry-After": str(seconds)})
         body = await json_body(request)
-        p = study.enrol(body.get("participant"), body.get("consent"))
+        p = study.enrol(body.get("participant"), body.get("consent"), token=body.get("token"))
         return ok({"participant": p.id, "token": p.token, "view": study.view(p)})
+
+    async def icon(request: Request) -> Response:
+        return await page("favicon.svg")(request)
 
     async def session(request: Request) -> Response:
         return ok(study.view(study.participant(request.query_params.get("token"))))
@@ -189,7 +218,7 @@ def build_app(study: Study, admin_token: str, sweep_s: float = SWEEP_S, request_
         return Response(text, media_type="text/csv; charset=utf-8", headers={**PAGE_HEADERS, "Content-Disposition": f'attachment; filename="{name}"'})
 
     async def play_error(request: Request, exc: PlayError) -> Response:
-        return error(exc.status, exc.message)
+        return error(exc.status, exc.message, exc.headers)
 
     async def http_error(request: Request, exc: HTTPException) -> Response:
         if exc.status_code == 404:
@@ -219,6 +248,7 @@ def build_app(study: Study, admin_token: str, sweep_s: float = SWEEP_S, request_
     routes = [
         Route("/", page("index.html")),
         Route("/admin", page("admin.html")),
+        Route("/favicon.ico", icon),
         Route("/static/{name}", static),
         Route("/api/info", info),
         Route("/api/participants", enrol, methods=["POST"]),

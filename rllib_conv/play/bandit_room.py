@@ -152,7 +152,7 @@ class BanditRoom(Room):
             task, context, attempt = self.schedule[self.step]
             if task == "test" and context == 0 and attempt == 1:
                 # The prizes change under the players' feet: say so, as the study's interface moved to a new task.
-                return "choose", "The Test task starts: the green arms have changed. Your turn: pick an arm."
+                return "choose", "Part 2 starts: the green arms have changed. Your turn: pick an arm."
             return "choose", "Your turn: pick an arm."
         return "waiting", f"You picked arm {self.picks[seat] + 1}. Waiting for {self._partner_words(seat)} to pick."
 

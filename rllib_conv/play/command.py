@@ -7,11 +7,18 @@ stays fast; the server and the trained egos load only when the command runs.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import logging
 import os
 from pathlib import Path
+from typing import Iterator
+
+from rllib_conv.common.adapters import FRESH, OLD_SPELLINGS, names
 
 EXPORT = "export"
 ADMIN_TOKEN_ENV = "RLLIB_CONV_ADMIN_TOKEN"
+MIN_ADMIN_TOKEN = 8  # as app.MIN_ADMIN_TOKEN; repeated here to keep the parser free of the web stack
+DEFAULT_ENROL_LIMIT = 20  # as app.DEFAULT_ENROL_LIMIT
 
 DESCRIPTION = """\
 Serve a study where people play the bandit of the paper's user study (or the blocks game)
@@ -26,7 +33,8 @@ updated after every try by one cross-entropy step toward the person's arm (--ste
 see rllib_conv/play/agent.py); on the Test task its prior is the task module of
 --test-run, or --test-prior. Every try is committed to OUT/study.sqlite3 (SQLite) before
 it is acknowledged; restart on the same folder and participants resume. The admin page
-(token printed at start) shows live counts per condition and downloads the export.
+(its token printed at start, unless it came from $RLLIB_CONV_ADMIN_TOKEN) shows live counts
+per condition and downloads the export.
 
 `rllib-conv play export DB [--out FILE] [--condition NAME]` writes the tries of study
 database DB (or its folder) as a user-study CSV that `rllib-conv report --user-study` reads.
@@ -36,7 +44,8 @@ database DB (or its folder) as a user-study CSV that `rllib-conv report --user-s
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """Add the `play` arguments to `p`."""
     p.add_argument("run", nargs="?", default=None, help="trained-ego trial folder: the agent named 'agent' (bandit: trained on the user-study Train task); or 'export'")
-    p.add_argument("db", nargs="?", default=None, help="with 'export': the study database (or the study folder holding study.sqlite3)")
+    # Its own destination: sharing `--db`'s would let an absent positional overwrite `--db FILE`.
+    p.add_argument("export_db", nargs="?", default=None, metavar="db", help="with 'export': the study database (or the study folder holding study.sqlite3)")
     p.add_argument("--agent", action="append", default=[], metavar="NAME=RUN", help="an agent condition NAME playing the ego in RUN ('oracle': the bandit's true marginals, to pilot without training); repeatable")
     p.add_argument("--conditions", default=None, help="comma-separated conditions participants are assigned to, balanced: agent names and/or 'human' (default: every agent, or human without any)")
     p.add_argument("--game", choices=["bandit", "blocks"], default=None, help="the game (default: the agents' game, else bandit)")
@@ -56,8 +65,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--step-size", type=float, default=3.0, help="the agent's adaptation step size eta (default 3: one observed pick -> 0.95)")
     p.add_argument("--greedy", action="store_true", help="the agent plays its most likely action instead of sampling")
     p.add_argument(
-        "--adapter", choices=["table", "posterior"], default="table",
-        help="how agents adapt between tries: table (the paper's partner module, default) or posterior: also by a posterior over "
+        "--adapter", choices=[*names(role="start", surface="play"), *OLD_SPELLINGS], default=FRESH,
+        help="how agents adapt between tries: fresh (the paper's partner module, learnt from the person; default; 'table' is its old spelling) or posterior: also by a posterior over "
         "which training partner's convention the person follows: that partner's head (bandit) or the best response to it (blocks, agent as P1); not in the paper",
     )
     p.add_argument("--games", type=int, default=5, help="blocks: games per session (default 5)")
@@ -66,18 +75,33 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--idle-timeout", type=float, default=600.0, help="seconds without a move before a session ends early (default 600)")
     p.add_argument("--completion-code", default=None, help="the code shown at the end, as the recruitment platform expects (default: a random code per participant)")
     p.add_argument("--consent", default=None, metavar="FILE", help="text file with the consent form shown first (paragraphs separated by blank lines)")
-    p.add_argument("--admin-token", default=None, help=f"the admin page's token (default: ${ADMIN_TOKEN_ENV}, else a random one, printed at start)")
+    p.add_argument("--admin-token", default=None, help=f"the admin page's token, at least {MIN_ADMIN_TOKEN} characters (default: ${ADMIN_TOKEN_ENV}, never printed; else a random one, printed at start)")
+    p.add_argument(
+        "--enrol-limit", type=int, default=DEFAULT_ENROL_LIMIT, metavar="N",
+        help=f"at most N enrolments (and re-enrolment attempts) per client address per minute; more get 429 (default {DEFAULT_ENROL_LIMIT}; 0: no limit)",
+    )
     p.add_argument("--verbose", action="store_true", help="log every HTTP request")
 
 
 def run(args: argparse.Namespace) -> None:
-    """Serve the study described by `args` until Ctrl-C, or export one (ValueError for bad arguments)."""
+    """Serve the study described by `args` until Ctrl-C, or export one (ValueError for bad arguments).
+
+    Every argument is checked before anything is written: a refused command leaves the
+    study folder as it was.
+    """
     if args.run == EXPORT:
         return _export(args)
-    if args.db is not None and args.run is not None:
-        raise ValueError(f"unexpected argument {args.db!r} after RUN (only `play export DB` takes a second one)")
+    if args.export_db is not None:
+        raise ValueError(f"unexpected argument {args.export_db!r} after RUN (only `play export DB` takes a second one; the study database is --db FILE)")
     if args.condition is not None:
         raise ValueError("--condition is for `play export DB`; to serve, use --conditions")
+    token_from_env = not args.admin_token and bool(os.environ.get(ADMIN_TOKEN_ENV))
+    token = args.admin_token or os.environ.get(ADMIN_TOKEN_ENV) or None
+    if token is not None and len(token) < MIN_ADMIN_TOKEN:
+        where = f"${ADMIN_TOKEN_ENV}" if token_from_env else "--admin-token"
+        raise ValueError(f"{where} must be at least {MIN_ADMIN_TOKEN} characters")
+    if args.enrol_limit < 0:
+        raise ValueError(f"--enrol-limit must be 0 (no limit) or more, got {args.enrol_limit}")
     from rllib_conv.play.conditions import DEFAULT_CONSENT, build_settings
     from rllib_conv.play.server import StudyServer
     from rllib_conv.play.store import DB_FILE
@@ -91,39 +115,63 @@ def run(args: argparse.Namespace) -> None:
     out = Path(args.out or "play_sessions")
     if out.exists() and not out.is_dir():
         raise ValueError(f"--out {str(out)!r} is a file; expected the study folder")
-    settings = build_settings(
-        args.run,
-        agents=args.agent,
-        conditions=args.conditions,
-        game=args.game,
-        test_runs=args.test_run,
-        test_prior=args.test_prior,
-        step_size=args.step_size,
-        greedy=args.greedy,
-        seed=args.seed,
-        adapter=args.adapter,
-        games=args.games,
-        person_seat=args.seat,
-        pair_timeout=args.pair_timeout,
-        idle_timeout=args.idle_timeout,
-        completion_code=args.completion_code,
-        consent=consent,
-    )
+    with _quiet_loading(args.verbose):
+        settings = build_settings(
+            args.run,
+            agents=args.agent,
+            conditions=args.conditions,
+            game=args.game,
+            test_runs=args.test_run,
+            test_prior=args.test_prior,
+            step_size=args.step_size,
+            greedy=args.greedy,
+            seed=args.seed,
+            adapter=args.adapter,
+            games=args.games,
+            person_seat=args.seat,
+            pair_timeout=args.pair_timeout,
+            idle_timeout=args.idle_timeout,
+            completion_code=args.completion_code,
+            consent=consent,
+        )
     db = Path(args.db) if args.db else out / DB_FILE
-    token = args.admin_token or os.environ.get(ADMIN_TOKEN_ENV) or None
-    server = StudyServer(settings, db, host=args.host, port=args.port, admin_token=token, verbose=args.verbose)
+    server = StudyServer(settings, db, host=args.host, port=args.port, admin_token=token, verbose=args.verbose, enrol_limit=args.enrol_limit)
     conditions = ", ".join(c.name for c in settings.conditions)
     print(f"rllib-conv play: {settings.game} study, conditions {conditions}; database {db}", flush=True)
-    print(f"admin page: {server.admin_url}", flush=True)
+    if token_from_env:  # a token kept out of the command line stays out of console logs too
+        print(f"admin page: {server.url}admin (token: ${ADMIN_TOKEN_ENV})", flush=True)
+    else:
+        print(f"admin page: {server.admin_url}", flush=True)
     print(f"participants: {server.url}?participant=ID (or no id: one is generated)", flush=True)
     print(f"open {server.url} in a browser (Ctrl-C stops)", flush=True)
     server.run()
 
 
+@contextlib.contextmanager
+def _quiet_loading(verbose: bool) -> Iterator[None]:
+    """Drop log records up to WARNING while the egos load, unless `verbose`.
+
+    RLlib logs a DeprecationWarning of its own API when it rebuilds a module from a
+    checkpoint; a study's operator can do nothing about it. The server's own warnings
+    come later and are kept.
+    """
+    if verbose:
+        yield
+        return
+    logging.disable(logging.WARNING)
+    try:
+        yield
+    finally:
+        logging.disable(logging.NOTSET)
+
+
 def _export(args: argparse.Namespace) -> None:
-    if args.db is None:
+    if args.export_db is not None and args.db is not None and args.export_db != args.db:
+        raise ValueError(f"play export: DB {args.export_db!r} and --db {args.db!r} differ; give the database once")
+    db = args.export_db or args.db
+    if db is None:
         raise ValueError("play export needs DB: the study database (or the study folder holding study.sqlite3)")
     from rllib_conv.play.export import export
 
-    path, rows = export(args.db, args.out, args.condition)
+    path, rows = export(db, args.out, args.condition)
     print(f"wrote {rows} rows to {path}")

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Sequence
 
+from rllib_conv.common.adapters import FRESH, POSTERIOR, choose, names
 from rllib_conv.envs.bandit import user_study_prizes
 from rllib_conv.play.agent import bandit_oracle_prior, uniform_prior
 from rllib_conv.play.room import DEFAULT_GAMES, GAMES, SEATS, TRIES, AgentSettings
@@ -26,8 +27,9 @@ HUMAN = "human"
 DEFAULT_AGENT = "agent"
 ORACLE = "oracle"  # --agent NAME=oracle: the bandit's true marginals as task module (piloting without training)
 TEST_PRIORS: tuple[str, ...] = ("oracle", "uniform")
-# How agents adapt: the partner table (`agent.py`, the paper's), or the convention posterior around it (`convention_agent.py`).
-ADAPTERS: tuple[str, ...] = ("table", "posterior")
+# How agents adapt (`rllib_conv.common.adapters`): `fresh`, the paper's partner module learnt from the person (a table of
+# logits, `agent.py`; `table` is its old spelling), or `posterior`, the convention posterior around it (`convention_agent.py`).
+ADAPTERS: tuple[str, ...] = tuple(names(role="start", surface="play"))
 NAME = re.compile(r"^[a-z][a-z0-9_-]{0,31}$")
 CODE = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
 DEFAULT_CONSENT = (
@@ -140,14 +142,14 @@ def _test_prior(test_run: str | None, test_prior: str, name: str) -> tuple[Any, 
 
 
 def build_agent(
-    name: str, run: str, game: str | None, test_run: str | None, test_prior: str, step_size: float, greedy: bool, seed: int, adapter: str = "table"
+    name: str, run: str, game: str | None, test_run: str | None, test_prior: str, step_size: float, greedy: bool, seed: int, adapter: str = FRESH
 ) -> tuple[str, AgentSettings, bool]:
     """(game, settings, new_task) of the agent `name` with its task module from `run` (or the oracle)."""
     adapt = f"adapts with step size {step_size:g}{', greedy' if greedy else ''}"
-    if adapter == "posterior":
+    if adapter == POSTERIOR:
         adapt += ", and by a posterior over its training partners' conventions (not in the paper)"
     if run == ORACLE:
-        if adapter == "posterior":
+        if adapter == POSTERIOR:
             raise ValueError(f"--adapter posterior: --agent {name}=oracle has no training partners' heads; give a trained modular run")
         if game not in (None, "bandit"):
             raise ValueError(f"--agent {name}=oracle: the oracle agent is the bandit's true marginals; --game is {game!r}")
@@ -166,7 +168,7 @@ def build_agent(
     if game not in GAMES:
         raise ValueError(f"{what} {str(ego.trial)!r} was trained on {game!r}; play supports {list(GAMES)}")
     new_task = False
-    conventions = convention_source(ego, what) if adapter == "posterior" else None
+    conventions = convention_source(ego, what) if adapter == POSTERIOR else None
     if game == "bandit":
         require_user_study(ego, new_task=False, what=what)
         test, test_words = _test_prior(test_run, test_prior, name)
@@ -193,7 +195,7 @@ def build_settings(
     step_size: float = 3.0,
     greedy: bool = False,
     seed: int = 0,
-    adapter: str = "table",
+    adapter: str = FRESH,
     **options: Any,
 ) -> StudySettings:
     """The study's settings from the `play` arguments (see its --help); ValueError naming the bad argument.
@@ -206,8 +208,7 @@ def build_settings(
     has every agent in the trained ego's seat adapt by the convention posterior too. `options` go to
     `StudySettings` as they are (tries, games, person_seat, timeouts, completion code, consent).
     """
-    if adapter not in ADAPTERS:
-        raise ValueError(f"--adapter must be one of {list(ADAPTERS)}, got {adapter!r}")
+    adapter = choose(adapter, "play", "start", "--adapter")
     if test_prior not in TEST_PRIORS:
         raise ValueError(f"--test-prior must be one of {list(TEST_PRIORS)}, got {test_prior!r}")
     if not (isinstance(step_size, (int, float)) and step_size > 0):

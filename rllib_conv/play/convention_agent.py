@@ -1,7 +1,7 @@
 """The study agent adapting by the convention posterior (`--adapter posterior`; not in the paper).
 
 Between a person's tries (bandit) or games (blocks) it updates
-`training.convention_posterior.ConventionPosterior` (which of its training partners'
+`adaptation.convention_posterior.ConventionPosterior` (which of its training partners'
 conventions, whole or situation by situation, the person is following) from the person's
 moves, and plays `PosteriorPlayer`'s answer. On the bandit that is the mixture of the
 trained ego's head for a convention it has recognised and the paper's agent
@@ -19,11 +19,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from rllib_conv.adaptation.convention_posterior import ConventionPosterior, PosteriorPlayer
 from rllib_conv.envs.best_response import BestResponse
 from rllib_conv.envs.convention_keys import KeyFn
 from rllib_conv.partners.base import Partner
 from rllib_conv.play.agent import AdaptiveAgent, Prior, Target
-from rllib_conv.training.convention_posterior import ConventionPosterior, PosteriorPlayer
 
 
 class _TablePlayer(Partner):

@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from rllib_conv import envs, partners
+from rllib_conv.adaptation.convention_posterior import known_conventions
 from rllib_conv.common.methods import method
 from rllib_conv.common.run_folders import CONFIG_FILE, experiment_of, trial_folders, trial_name
 from rllib_conv.envs.convention_keys import convention_key
@@ -17,7 +18,6 @@ from rllib_conv.partners.population import Population
 from rllib_conv.play.agent import Prior, legal_renormalised
 from rllib_conv.play.convention_agent import ConventionSource
 from rllib_conv.training.checkpoints import last_checkpoint
-from rllib_conv.training.convention_posterior import known_conventions
 from rllib_conv.training.evaluate import head_probs, load_module, task_probs
 from rllib_conv.training.experiment import ExperimentConfig, trial_config
 

@@ -3,9 +3,9 @@
 Two layers, because uvicorn parses HTTP before the app sees a request:
 
 - `LimitedH11Protocol` (uvicorn's h11 protocol, three changes): a request that is not
-  HTTP (a negative or garbled Content-Length, a bad request line, headers still arriving
-  past `MAX_HEADER_BYTES`, a non-ASCII path) gets a JSON 400 instead of plain text or a
-  traceback; a client that opens a connection and does not finish its request line and
+  HTTP (a negative or garbled Content-Length, a bad request line, a non-ASCII path) gets a
+  JSON 400 instead of plain text or a traceback, and headers still arriving past
+  `MAX_HEADER_BYTES` a JSON 431 (h11's own hint, which uvicorn drops); a client that opens a connection and does not finish its request line and
   headers within `REQUEST_TIMEOUT_S` gets 408 and is disconnected (a slow client holds a
   socket for seconds, never forever).
 - `BodyLimits` (ASGI middleware): headers over `MAX_HEADER_BYTES` get 431; the body is
@@ -51,6 +51,18 @@ class LimitedH11Protocol(H11Protocol):
     def connection_made(self, transport: asyncio.Transport) -> None:  # type: ignore[override]
         super().connection_made(transport)
         self._deadline: asyncio.TimerHandle | None = None
+        self._refusal: h11.RemoteProtocolError | None = None
+        parse = self.conn.next_event
+
+        def next_event() -> Any:
+            # uvicorn answers every h11 refusal with 400; keep it, to answer 431 where h11 says so.
+            try:
+                return parse()
+            except h11.RemoteProtocolError as exc:
+                self._refusal = exc
+                raise
+
+        self.conn.next_event = next_event  # type: ignore[method-assign]
         self._arm()
 
     def _arm(self) -> None:
@@ -93,7 +105,10 @@ class LimitedH11Protocol(H11Protocol):
     def send_400_response(self, msg: str) -> None:
         if self.transport.is_closing():
             return
-        self.transport.write(raw_response(400, f"malformed HTTP request: {msg.rstrip('.')}"))
+        if self._refusal is not None and self._refusal.error_status_hint == 431:
+            self.transport.write(raw_response(431, f"the request headers are over {MAX_HEADER_BYTES} bytes; at most {MAX_HEADER_BYTES} are accepted"))
+        else:
+            self.transport.write(raw_response(400, f"malformed HTTP request: {msg.rstrip('.')}"))
         self.transport.close()
 
 

@@ -30,7 +30,8 @@ from rllib_conv.play.store import Store
 GAMES: tuple[str, ...] = ("bandit", "blocks")
 SEATS: tuple[int, ...] = (1, 2)
 STUDY_TASKS: tuple[str, ...] = ("train", "test")
-TASK_LABELS = {"train": "Train task", "test": "Test task"}
+# What participants read: the paper's "Train task / Test task" and "context" are researchers' words.
+TASK_LABELS = {"train": "Part 1 of 2", "test": "Part 2 of 2"}
 CONTEXT_NAMES: tuple[str, ...] = ("A", "B", "C")
 TRIES = 5
 DEFAULT_GAMES = 5
@@ -39,12 +40,13 @@ MAX_STEP = 10_000
 
 
 class PlayError(Exception):
-    """A request the study refuses: `status` is the HTTP status, `message` the sentence shown in the page."""
+    """A request the study refuses: `status` is the HTTP status, `message` the sentence shown in the page, `headers` extra answer headers."""
 
-    def __init__(self, status: int, message: str) -> None:
+    def __init__(self, status: int, message: str, headers: dict[str, str] | None = None) -> None:
         super().__init__(message)
         self.status = status
         self.message = message
+        self.headers = headers
 
 
 class Cancellable(Protocol):
@@ -65,23 +67,36 @@ def thread_call_later(delay: float, callback: Callable[[], None]) -> Cancellable
 
 
 def parse_int(value: Any, name: str, low: int, high: int) -> int:
-    """`value` as an int in [low, high] (JSON ints, or strings of digits), else PlayError 400."""
+    """`value` as an int in [low, high] (JSON ints, integral floats, or strings of ASCII digits), else PlayError 400.
+
+    Never converts through float (an int past 1e308 overflows it) and reads only ASCII
+    digits (`str.isdigit` also accepts '²', which `int` refuses).
+    """
+    number: int | None = None
     if isinstance(value, bool) or value is None:
-        ok = False
+        pass
     elif isinstance(value, int):
-        ok = True
+        number = value
     elif isinstance(value, float):
-        ok = math.isfinite(value) and value == int(value)
+        if math.isfinite(value) and value.is_integer():
+            number = int(value)
     elif isinstance(value, str):
-        ok = value.strip().lstrip("-").isdigit() and len(value) < 20
-    else:
-        ok = False
-    if ok:
-        number = int(float(value)) if not isinstance(value, str) else int(value.strip())
-        if low <= number <= high:
-            return number
-    shown = repr(value) if len(repr(value)) <= 40 else repr(value)[:37] + "..."
+        digits = value.strip()
+        unsigned = digits[1:] if digits.startswith("-") else digits
+        if 0 < len(unsigned) < 20 and unsigned.isascii() and unsigned.isdigit():
+            number = int(digits)
+    if number is not None and low <= number <= high:
+        return number
+    shown = shown_value(value)
     raise PlayError(400, f"{name} must be an integer from {low} to {high}, got {shown}")
+
+
+def shown_value(value: Any) -> str:
+    """`value` for an error message: its repr, cut to 40 characters (an int is cut before its repr, which may not be allowed)."""
+    if isinstance(value, int) and not isinstance(value, bool) and abs(value) >= 10**40:
+        return "an integer of more than 40 digits"
+    text = repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."
 
 
 @dataclass

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import uvicorn
 
-from rllib_conv.play.app import build_app
+from rllib_conv.play.app import DEFAULT_ENROL_LIMIT, MIN_ADMIN_TOKEN, build_app
 from rllib_conv.play.conditions import StudySettings
 from rllib_conv.play.limits import MAX_HEADER_BYTES, REQUEST_TIMEOUT_S, LimitedH11Protocol
 from rllib_conv.play.store import Store
@@ -55,7 +55,8 @@ class StudyServer:
     """One study served on host:port from database `db` (module docstring).
 
     `admin_token` None draws one; `request_timeout_s` bounds how long a client may take to
-    send a request's headers, and its body.
+    send a request's headers, and its body; `enrol_limit` is how many enrolments one client
+    address may ask for per minute (0: no limit).
     """
 
     def __init__(
@@ -68,9 +69,13 @@ class StudyServer:
         admin_token: str | None = None,
         verbose: bool = False,
         request_timeout_s: float = REQUEST_TIMEOUT_S,
+        enrol_limit: int = DEFAULT_ENROL_LIMIT,
     ) -> None:
         self.settings = settings
         self.request_timeout_s = request_timeout_s
+        self.enrol_limit = enrol_limit
+        if admin_token is not None and len(admin_token) < MIN_ADMIN_TOKEN:  # before the database: a refusal writes nothing
+            raise ValueError(f"--admin-token must be at least {MIN_ADMIN_TOKEN} characters")
         self.sock = bind(host, port)  # first: a busy port creates no study folder
         try:
             self.store = Store(db)
@@ -99,7 +104,7 @@ class StudyServer:
         loop = asyncio.get_running_loop()
         self.study = Study(self.settings, self.store, call_later=loop.call_later)
         config = uvicorn.Config(
-            build_app(self.study, self.admin_token, request_timeout_s=self.request_timeout_s),
+            build_app(self.study, self.admin_token, request_timeout_s=self.request_timeout_s, enrol_limit=self.enrol_limit),
             http=type("StudyH11Protocol", (LimitedH11Protocol,), {"header_timeout_s": self.request_timeout_s}),
             ws_max_size=WS_MAX_MESSAGE,
             h11_max_incomplete_event_size=MAX_HEADER_BYTES,

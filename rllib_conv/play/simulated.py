@@ -5,8 +5,9 @@
 Each simulated participant does what the page does, over HTTP and a WebSocket: enrols
 with its id, listens to its live view, picks a good arm (bandit) whenever the view says
 it may, and stops at the completion code. When the server goes away (killed, restarted)
-it retries with the same id until `deadline_s`: enrolling again resumes its session,
-and a move answered with 409 (already played before the crash) is not played twice.
+it retries with the same id until `deadline_s`: enrolling again with the id and the token
+its first enrolment gave (as the page keeps it) resumes its session, and a move answered
+with 409 (already played before the crash) is not played twice.
 
 What it saw is kept (`Outcome`): every try shown to it as played (`seen`, the
 acknowledged tries the database must hold), its completion code, and the latency of every
@@ -96,6 +97,8 @@ class Outcome:
     seen_before_outage: dict[tuple[str, str, int], tuple[int, int]] | None = None  # `seen` when the server first went away
     reconnects: int = 0
     conflicts: int = 0
+    resumes: int = 0  # re-enrolments with the session's token that the server accepted
+    refused_resumes: int = 0
 
 
 class Participant:
@@ -141,9 +144,15 @@ class Participant:
             await asyncio.sleep(RETRY_S)
 
     async def _enrol(self) -> None:
-        r = await self._request("enrol", "POST", "/api/participants", {"consent": True, "participant": self.out.participant})
+        body = {"consent": True, "participant": self.out.participant}
+        if self.token is not None:
+            body["token"] = self.token  # a resume proves it is the same participant
+        r = await self._request("enrol", "POST", "/api/participants", body)
+        if r.status_code != 200 and self.token is not None:
+            self.out.refused_resumes += 1
         r.raise_for_status()
         data = r.json()
+        self.out.resumes += self.token is not None
         self.token = data["token"]
         self.out.tokens.add(self.token)
         self._take(data["view"])

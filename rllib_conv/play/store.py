@@ -9,7 +9,8 @@ One file per study (default `<study folder>/study.sqlite3`), written by one serv
   `sqlite3.Error`; the caller then changes nothing in memory either.
 - **Schema versioned** with `PRAGMA user_version`: a new file gets `SCHEMA_VERSION`, an
   older one is migrated in order (`MIGRATIONS`), a newer one (written by a later release)
-  is refused with a ValueError.
+  is refused with a ValueError, read from the file's header before SQLite opens it: a
+  refused file is left byte for byte as it was (no switch to WAL, no `-wal`/`-shm` files).
 - **One study per file.** `check_settings` stores what a replay depends on (game, seed,
   tries, games, task) and each condition's description on first use and refuses a
   restart with different ones, naming the setting: restored sessions must replay exactly.
@@ -37,6 +38,8 @@ from pathlib import Path
 from typing import Any, Iterator, Mapping
 
 DB_FILE = "study.sqlite3"
+SQLITE_MAGIC = b"SQLite format 3\x00"
+USER_VERSION_AT = 60  # the header's 4-byte big-endian `PRAGMA user_version` (sqlite.org/fileformat.html)
 PARTICIPANT_STATES: tuple[str, ...] = ("waiting", "playing", "finished", "ended")
 ROOM_STATES: tuple[str, ...] = ("playing", "finished", "ended")
 OPEN_STATES: tuple[str, ...] = ("waiting", "playing")
@@ -155,6 +158,31 @@ def db_path(path: str | Path) -> Path:
     return path / DB_FILE if path.is_dir() else path
 
 
+def header_version(path: Path) -> int | None:
+    """The schema version in the header of SQLite file `path`, read as plain bytes (None: no file, or an empty one).
+
+    ValueError when the file is not an SQLite database. Opening the file with SQLite first
+    would already change it (a journal mode, a `-shm` beside it).
+    """
+    try:
+        with path.open("rb") as f:
+            head = f.read(100)
+    except FileNotFoundError:
+        return None
+    except OSError as exc:
+        raise ValueError(f"{str(path)!r} cannot be read ({exc.strerror or exc})") from None
+    if not head:
+        return None
+    if len(head) < 100 or not head.startswith(SQLITE_MAGIC):
+        raise ValueError(f"{str(path)!r} is not a study database (not an SQLite file)")
+    return int.from_bytes(head[USER_VERSION_AT : USER_VERSION_AT + 4], "big")
+
+
+def newer_schema_error(path: Path, version: int) -> ValueError:
+    """The refusal of a database written by a later release."""
+    return ValueError(f"{str(path)!r} has schema version {version}, newer than this release's {SCHEMA_VERSION}; use a newer rllib-conv")
+
+
 class Store:
     """The study database (module docstring); thread-safe, one writer at a time.
 
@@ -166,6 +194,11 @@ class Store:
         self.path = Path(path)
         if readonly and not self.path.is_file():
             raise ValueError(f"DB {str(self.path)!r} does not exist; expected a study database ({DB_FILE}) or the study folder holding it")
+        if self.path.is_dir():
+            raise ValueError(f"{str(self.path)!r} is a folder; expected a study database file")
+        stamped = header_version(self.path)
+        if stamped is not None and stamped > SCHEMA_VERSION:
+            raise newer_schema_error(self.path, stamped)
         if not readonly:
             self.path.parent.mkdir(parents=True, exist_ok=True)
         uri = f"file:{self.path.resolve()}?mode=ro" if readonly else str(self.path)
@@ -180,8 +213,9 @@ class Store:
         except sqlite3.DatabaseError as exc:
             raise ValueError(f"{str(self.path)!r} is not a study database ({exc})") from None
         self._lock = threading.RLock()
-        if version > SCHEMA_VERSION:
-            raise ValueError(f"{str(self.path)!r} has schema version {version}, newer than this release's {SCHEMA_VERSION}; use a newer rllib-conv")
+        if version > SCHEMA_VERSION:  # a newer version only in the WAL, which the header check cannot see
+            self._db.close()
+            raise newer_schema_error(self.path, version)
         if version < SCHEMA_VERSION:
             if readonly:
                 raise ValueError(f"{str(self.path)!r} has schema version {version}; open it once with `rllib-conv play` to migrate it to {SCHEMA_VERSION}")
@@ -256,6 +290,19 @@ class Store:
             starts = int(row[0]) + 1 if row else 1
             db.execute("INSERT OR REPLACE INTO settings (key, value) VALUES ('starts', ?)", (str(starts),))
             return starts
+
+    def count_refused_resume(self) -> int:
+        """Count one more refused re-enrolment (an id sent without its token); return the total."""
+        with self._write() as db:
+            row = db.execute("SELECT value FROM settings WHERE key = 'refused_resumes'").fetchone()
+            total = int(row[0]) + 1 if row else 1
+            db.execute("INSERT OR REPLACE INTO settings (key, value) VALUES ('refused_resumes', ?)", (str(total),))
+            return total
+
+    def refused_resumes(self) -> int:
+        """How many re-enrolments without the participant's token were refused in this study."""
+        row = self._read("SELECT value FROM settings WHERE key = 'refused_resumes'")
+        return int(row[0][0]) if row else 0
 
     def settings(self) -> dict[str, str]:
         """The study's stored settings (game, seed, ...) as text; empty for a new file."""

@@ -3,8 +3,11 @@
 The flow of one participant:
 
 1. **Enrol** (`enrol`): after consenting, with the id the recruitment platform put in the
-   URL (or a generated one). The id is the participant's key: enrolling again with it
-   resumes the same session (same token, condition and room), after a reload or a restart.
+   URL (or a generated one). The id is the participant's key, the token their proof:
+   enrolling again with the id and the token the first enrolment gave (the page keeps it)
+   resumes the same session (same condition and room), after a reload or a restart. The id
+   alone is refused (409): ids travel in URLs others see, and must not hand over a session.
+   Refusals are counted for the admin page.
 2. **Assignment**: to the condition with the fewest participants so far, ties broken at
    random (block randomisation: after every round of len(conditions) arrivals the counts
    are equal).
@@ -39,12 +42,13 @@ from rllib_conv.play.agent import AdaptiveAgent, responder_prior
 from rllib_conv.play.bandit_room import BanditRoom
 from rllib_conv.play.blocks_room import BlocksRoom
 from rllib_conv.play.conditions import Condition, StudySettings
-from rllib_conv.play.room import CallLater, PlayError, Room, thread_call_later
+from rllib_conv.play.room import CallLater, PlayError, Room, shown_value, thread_call_later
 from rllib_conv.play.store import Participant, RoomRecord, Store
 
 log = logging.getLogger(__name__)
 
-PARTICIPANT_ID = re.compile(r"^[A-Za-z0-9._-]{1,64}$")
+PARTICIPANT_ID = re.compile(r"[A-Za-z0-9._-]{1,64}")  # whole (fullmatch): no trailing newline either
+RECENT_REFUSALS = 20  # refused re-enrolments the admin page lists
 CODE_ALPHABET = "ABCDEFGHJKLMNPQRSTUVWXYZ23456789"  # no 0/O, 1/I: codes are read and typed
 CODE_LENGTH = 8
 VERSIONS_PER_START = 10**9
@@ -80,6 +84,7 @@ class Study:
         self.version = store.count_start() * VERSIONS_PER_START
         self._lock = threading.RLock()
         self._rng = np.random.default_rng([settings.seed, len(self.participants)])
+        self.refused: list[dict[str, Any]] = []  # the latest refused re-enrolments (id, time), newest last
         self._restore()
 
     # -- restart ---------------------------------------------------------------------------
@@ -98,16 +103,20 @@ class Study:
             self._finish_if_done(room)
 
     # -- enrolment and assignment ------------------------------------------------------------
-    def enrol(self, participant_id: Any = None, consent: Any = None) -> Participant:
-        """Enrol a participant who consented (or return the one with this id: a resume); PlayError 400/503."""
+    def enrol(self, participant_id: Any = None, consent: Any = None, token: Any = None) -> Participant:
+        """Enrol a participant who consented, or resume the one with this id when `token` is theirs; PlayError 400/409/503."""
         if consent is not True:
-            raise PlayError(400, f"consent must be true (the participant agreed to the consent form), got {consent!r}")
-        if participant_id is not None and not (isinstance(participant_id, str) and PARTICIPANT_ID.match(participant_id)):
-            shown = repr(participant_id)[:40]
-            raise PlayError(400, f"participant must be an id of 1-64 letters, digits, '.', '-' or '_' (as recruitment platforms pass it), got {shown}")
+            raise PlayError(400, f"consent must be true (the participant agreed to the consent form), got {shown_value(consent)}")
+        if participant_id is not None and not (isinstance(participant_id, str) and PARTICIPANT_ID.fullmatch(participant_id)):
+            raise PlayError(
+                400, f"participant must be an id of 1-64 letters, digits, '.', '-' or '_' (as recruitment platforms pass it), got {shown_value(participant_id)}"
+            )
         with self._lock:
             if participant_id in self.participants:
                 p = self.participants[participant_id]
+                # surrogatepass: JSON may carry a lone surrogate ("\ud800"), which plain encode() refuses
+                if not (isinstance(token, str) and secrets.compare_digest(token.encode("utf-8", "surrogatepass"), p.token.encode())):
+                    self._refuse_resume(p)
                 self._seat_with_agent(p)  # an earlier enrolment whose room could not be opened
                 return p
             pid = participant_id or self._new_id()
@@ -123,6 +132,20 @@ class Study:
             self.version += 1
             self._seat_with_agent(p)
             return p
+
+    def _refuse_resume(self, p: Participant) -> None:
+        """Refuse re-enrolling `p` without their token (PlayError 409), counted for the admin page."""
+        try:
+            self.store.count_refused_resume()
+        except sqlite3.Error as exc:
+            log.warning("could not count a refused re-enrolment of %s (%s)", p.id, exc)
+        self.refused = [*self.refused, {"participant": p.id, "at": self.clock()}][-RECENT_REFUSALS:]
+        log.warning("refused re-enrolling participant %s without their session token", p.id)
+        raise PlayError(
+            409,
+            "This study link has already been used to start a session in another browser. Please continue in the browser "
+            "where you started (the page picks up where you left off), or contact the researcher.",
+        )
 
     def _seat_with_agent(self, p: Participant) -> None:
         """Open the room of a participant of an agent condition who has none yet."""
@@ -331,7 +354,14 @@ class Study:
                 active = any(c.name == name for c in self.settings.conditions)
                 conditions.append({"name": name, "kind": kind, "description": description, "active": active, **counts[name]})
             connected = sum(1 for n in self._present.values() if n > 0)
-            return {"game": self.settings.game, "conditions": conditions, "connected": connected, "participants": len(self.participants)}
+            return {
+                "game": self.settings.game,
+                "conditions": conditions,
+                "connected": connected,
+                "participants": len(self.participants),
+                "refused_resumes": self.store.refused_resumes(),
+                "recent_refused": [r["participant"] for r in self.refused],
+            }
 
     def close(self) -> None:
         """Stop every room's agent timers (the server is stopping)."""

@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from rllib_conv import envs
-from rllib_conv.envs.convention_keys import blocks_observation
+from rllib_conv.envs.blocks.keys import blocks_observation
 from rllib_conv.partners.blocks import TRAIN_PERMUTATIONS, BlocksLeader, PermutationPartner
 from rllib_conv.play.conditions import StudySettings
 from rllib_conv.play.convention_agent import ConventionSource

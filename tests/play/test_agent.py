@@ -9,8 +9,8 @@ import pytest
 
 from rllib_conv.common.user_study_table import USER_STUDY_GOOD_ARMS
 from rllib_conv.envs.bandit import user_study_prizes
+from rllib_conv.envs.bandit.keys import bandit_context
 from rllib_conv.envs.blocks import GOALS, PASS, RED, encode_observation
-from rllib_conv.envs.convention_keys import bandit_context
 from rllib_conv.play.agent import (
     AdaptiveAgent,
     PartnerTable,

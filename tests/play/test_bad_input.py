@@ -67,7 +67,8 @@ MALFORMED_HTTP = [
     ("a binary request", bytes(range(256)) * 4, 400, "malformed HTTP request"),
     ("a non-ASCII path", b"GET /caf\xc3\xa9 HTTP/1.1\r\nHost: x\r\n\r\n", 400, "malformed HTTP request"),
     ("headers over the limit", request("GET", "/api/info", headers={"X-Big": "x" * 20000}), 431, "at most 16384"),
-    ("headers over the limit, trickled", request("GET", "/api/info", headers={"X-Big": "x" * 20000})[:-4], 400, "malformed HTTP request"),
+    ("headers over the limit, trickled", request("GET", "/api/info", headers={"X-Big": "x" * 20000})[:-4], 431, "at most 16384"),
+    ("a 1 MiB header", request("GET", "/api/info", headers={"X-Big": "x" * 2**20}), 431, "at most 16384"),
     ("PUT", request("PUT", "/api/move", b"{}", JSON | {"Content-Length": "2"}), 405, "PUT is not allowed"),
     ("DELETE", request("DELETE", "/api/participants"), 405, "DELETE is not allowed"),
     ("PATCH on a page", request("PATCH", "/", b"{}", JSON | {"Content-Length": "2"}), 405, "PATCH is not allowed"),
@@ -130,6 +131,30 @@ def test_bad_moves_and_unknown_ids_get_4xx_and_change_nothing(server: StudyServe
         for path in ("/api/session?token=nobody", "/api/session?token=", "/api/session?token=%00%ff"):
             assert c.get(path).status_code == 403, path
         assert c.get(f"/api/session?token={token}").json()["played"] == 0  # nothing was played by any of them
+
+
+# The five inputs that were HTTP 500s (issue 47): Python's int-length limit, float overflow, a Unicode digit.
+FORMER_500S = [
+    ("step of 5000 digits", b'{"token": "%s", "step": ' + b"9" * 5000 + b', "arm": 1}', 400, "must be a JSON object"),
+    ("step = 1e400 as an integer", b'{"token": "%s", "step": 1' + b"0" * 400 + b', "arm": 1}', 400, "step must be an integer from 0 to"),
+    ("arm = 1e400 as an integer", b'{"token": "%s", "step": 0, "arm": 1' + b"0" * 400 + b"}", 400, "arm must be an integer from 1 to 4"),
+    ("arm = 1e400", b'{"token": "%s", "step": 0, "arm": 1e400}', 400, "arm must be an integer from 1 to 4"),
+    ("arm a superscript two", '{"token": "%s", "step": 0, "arm": "²"}'.encode(), 400, "arm must be an integer from 1 to 4, got '²'"),
+    ("step a superscript two", '{"token": "%s", "step": "²", "arm": 1}'.encode(), 400, "step must be an integer from 0 to"),
+    ("arm an Arabic-Indic digit", '{"token": "%s", "step": 0, "arm": "\u0661"}'.encode(), 400, "arm must be an integer from 1 to 4"),
+    ("consent of 4000 digits", b'{"consent": ' + b"7" * 4000 + b"}", 400, "consent must be true"),
+    ("participant of 4000 digits", b'{"consent": true, "participant": ' + b"7" * 4000 + b"}", 400, "participant must be an id"),
+]
+
+
+@pytest.mark.parametrize("what, body, status, words", FORMER_500S, ids=[c[0] for c in FORMER_500S])
+def test_huge_and_unicode_numbers_get_400_not_500(server: StudyServer, what: str, body: bytes, status: int, words: str) -> None:
+    with httpx.Client(base_url=server.url, timeout=10) as c:
+        token = c.post("/api/participants", json={"consent": True}).json()["token"]
+        path = "/api/participants" if b"consent" in body else "/api/move"
+        r = c.post(path, content=body.replace(b"%s", token.encode()), headers=JSON)
+        assert r.status_code == status and words in r.json()["error"], (what, r.status_code, r.text)
+        assert c.get(f"/api/session?token={token}").json()["played"] == 0  # nothing played, and the server still serves
 
 
 def test_slow_and_truncated_requests_get_408_within_the_deadline(server: StudyServer) -> None:

@@ -1,6 +1,7 @@
-"""End to end in headless Chromium: consent to completion code in both conditions, the admin page, restarts, blocks.
+"""End to end in headless Chromium: consent to completion code in both conditions, the admin page, restarts, blocks,
+the pages a participant sees when something goes wrong (a session ended early, a damaged study link).
 
-Each page is screenshotted under the test's tmp_path (agent_session.png, person_1.png, ...).
+Each page is screenshotted under the test's tmp_path (agent_session.png, person_1.png, ended_early.png, ...).
 """
 
 from __future__ import annotations
@@ -23,13 +24,14 @@ from tests.play.servers import ADMIN_TOKEN, oracle_study
 SCHEDULE = [(task, c, t) for task in ("train", "test") for c in "ABC" for t in range(1, 6)]
 TIMEOUT_MS = 15_000
 INTERNALS = ("modular", "lam 0.5", "EgoTrainable", "bandit-user-study", "oracle", "step size", "condition")
+RESEARCHER_WORDS = ("Train task", "Test task", "context", "participant must be", "token")  # never in a participant's visible text
 expect.set_options(timeout=TIMEOUT_MS)  # the machine has 2 busy cores
 
 
 @pytest.fixture
 def pages(browser):
-    """New pages, each in its own browser context (two people = two browsers); JS errors are collected."""
-    contexts, errors = [], []
+    """New pages, each in its own browser context (two people = two browsers); JS errors and failed requests are collected."""
+    contexts, errors, failed, console = [], [], [], []
 
     def new_page() -> Page:
         context = browser.new_context(viewport={"width": 1000, "height": 900}, accept_downloads=True)
@@ -37,9 +39,15 @@ def pages(browser):
         page = context.new_page()
         page.set_default_timeout(TIMEOUT_MS)
         page.on("pageerror", lambda exc: errors.append(str(exc)))
+        # Every answer >= 400 the page got (a favicon's 404 shows in the console as an unexplained error).
+        page.on("response", lambda r: r.status >= 400 and failed.append(f"{r.status} {r.url}"))
+        # The console sees what `response` does not: the browser's own favicon.ico request.
+        page.on("console", lambda m: m.type == "error" and console.append(f"{m.text} {m.location.get('url', '')}"))
         return page
 
     new_page.errors = errors
+    new_page.failed = failed
+    new_page.console = console
     yield new_page
     for context in contexts:
         context.close()
@@ -70,26 +78,35 @@ def assert_no_internals(page: Page) -> None:
     assert not [w for w in INTERNALS if w in text], [w for w in INTERNALS if w in text]
 
 
+def assert_lay_words(page: Page) -> None:
+    """What a participant reads (the visible text, the history table included) is free of researchers' words."""
+    page.evaluate("document.getElementById('history-box').open = true")
+    text = page.locator("body").inner_text()
+    assert not [w for w in RESEARCHER_WORDS if w.lower() in text.lower()], [w for w in RESEARCHER_WORDS if w.lower() in text.lower()]
+
+
+@pytest.mark.slow
 def test_a_participant_plays_the_agent_from_consent_to_completion_code(study_ego: Path, serve, pages, tmp_path: Path) -> None:
     srv = serve(build_settings(study_ego, consent="Study ABC.\n\nWe record your choices only."))
     page = pages()
     consent_and_start(page, srv.url + "?PROLIFIC_PID=5f1e2d3c4b5a69788796a5b4&STUDY_ID=x")
     expect(page.locator("#status")).to_have_text("Your turn: pick an arm.")
-    expect(page.locator("#where")).to_have_text("Train task · context A · try 1 of 5")
+    expect(page.locator("#where")).to_have_text("Part 1 of 2 · situation A · try 1 of 5")
     expect(page.locator("#partner")).to_have_text("an AI agent")
     expect(page.locator("#last")).to_have_text("No try played yet.")
 
     picks = []
     for i, (task, context, attempt) in enumerate(SCHEDULE):
         page.wait_for_selector('body[data-phase="choose"]', state="attached")
-        expect(page.locator("#where")).to_have_text(f"{'Train' if task == 'train' else 'Test'} task · context {context} · try {attempt} of 5")
+        expect(page.locator("#where")).to_have_text(f"Part {1 if task == 'train' else 2} of 2 · situation {context} · try {attempt} of 5")
         arm = good_arms(page)[0]  # a consistent person: the left-most green arm
         page.click(f'.arm[data-arm="{arm}"]')
         wait_played(page, i + 1)
-        assert f"context {context}, try {attempt}): you pulled arm {arm}, the agent pulled arm" in page.locator("#last").inner_text()
+        assert f"situation {context}, try {attempt}): you pulled arm {arm}, the agent pulled arm" in page.locator("#last").inner_text()
         picks.append(arm)
-        if i == 0:
+        if i in (0, 15):  # Part 1, and Part 2 as it starts
             assert_no_internals(page)
+            assert_lay_words(page)
     expect(page.locator("#status")).to_contain_text("Session finished")
     expect(page.locator("#done")).to_be_visible()
     code = page.locator("#completion-code").inner_text()
@@ -172,7 +189,7 @@ def test_the_page_shows_refused_moves_and_survives_a_server_restart(serve, pages
         expect(page.locator("#offline")).to_be_hidden()
         page.click('.arm[data-arm="1"]')
         wait_played(page, 2)
-        assert "context A, try 2" in page.locator("#last").inner_text()
+        assert "situation A, try 2" in page.locator("#last").inner_text()
     finally:
         again.stop()
     assert pages.errors == []
@@ -241,3 +258,63 @@ def test_two_people_play_blocks_and_see_moves_as_they_happen(serve, pages, tmp_p
     rows = table_csv(srv.store).splitlines()
     assert len(rows) == 7 and rows[-1].endswith(",20,human")
     assert pages.errors == []
+
+
+def test_a_session_that_ends_early_says_so_in_plain_words(serve, pages, tmp_path: Path) -> None:
+    """Nobody to pair with: the page says the session ended and gives the code, never "waiting · partner: not yet found"."""
+    srv = serve(oracle_study("human", pair_timeout=0.5))  # the sweep ends it within SWEEP_S (5 s)
+    page = pages()
+    consent_and_start(page, srv.url + "?participant=alone")
+    page.wait_for_selector('body[data-phase="ended"]', state="attached", timeout=20_000)
+    expect(page.locator("#status")).to_have_text(
+        "This session has ended early: no other participant arrived in time to play with you. Thank you for your time."
+    )
+    expect(page.locator("#done")).to_be_visible()
+    page.screenshot(path=tmp_path / "ended_early.png", full_page=True)
+    text = page.locator("body").inner_text()
+    assert "not yet found" not in text and "waiting" not in text.lower(), text
+    assert re.fullmatch(r"[A-Z2-9]{8}", page.locator("#completion-code").inner_text())
+    assert_lay_words(page)
+    assert pages.errors == [] and pages.failed == []
+
+
+@pytest.mark.parametrize("query", ["?PROLIFIC_PID=%3Cscript%3E", "?participant=a%20b", "?workerId=" + "x" * 65])
+def test_a_damaged_study_link_gets_a_plain_explanation_before_consent(serve, pages, tmp_path: Path, query: str) -> None:
+    srv = serve(oracle_study("agent"))
+    page = pages()
+    page.goto(srv.url + query)
+    expect(page.locator("#bad-link")).to_be_visible()
+    expect(page.locator("#bad-link")).to_contain_text("This study link is incomplete or damaged")
+    expect(page.locator("#bad-link")).to_contain_text("open the study from there again")
+    for section in ("#consent", "#instructions", "#game", "#error"):
+        expect(page.locator(section)).to_be_hidden()
+    page.screenshot(path=tmp_path / "bad_link.png", full_page=True)
+    assert_lay_words(page)
+    assert pages.errors == [] and pages.failed == [] and pages.console == []
+    with httpx.Client(base_url=srv.url, timeout=10) as c:
+        assert c.get("/api/admin/status", headers={"Authorization": f"Bearer {ADMIN_TOKEN}"}).json()["participants"] == 0
+
+
+def test_the_admin_page_with_a_wrong_token_shows_the_error_alone(serve, pages) -> None:
+    srv = serve(oracle_study("agent"))
+    page = pages()
+    page.goto(srv.url + "admin?token=wrong-token")
+    expect(page.locator("#error")).to_have_text("wrong admin token")
+    expect(page.locator("#login")).to_be_visible()
+    expect(page.locator("#summary")).to_have_text("Enter the admin token.")
+    assert "Loading" not in page.locator("body").inner_text()
+    assert pages.failed == [f"403 {srv.url}api/admin/status"]  # the refused token, and nothing else
+    assert [m for m in pages.console if "api/admin/status" not in m] == []  # no favicon 404
+
+
+def test_the_pages_ask_for_nothing_that_is_missing(serve, pages) -> None:
+    """No unexplained 404 in the browser's console: every request of the participant's and the admin's pages is answered."""
+    srv = serve(oracle_study("agent"))
+    page = pages()
+    consent_and_start(page, srv.url + "?participant=quiet")
+    page.click('.arm[data-arm="1"]')
+    wait_played(page, 1)
+    page.goto(srv.url + f"admin?token={ADMIN_TOKEN}")
+    expect(page.locator("#conditions tbody tr")).to_have_count(1)
+    page.wait_for_timeout(500)  # a late favicon request
+    assert pages.failed == [] and pages.errors == [] and pages.console == []

@@ -17,7 +17,7 @@ from rllib_conv.play.store import DB_FILE
 from tests.play.servers import StudyProcess
 
 TRIES = 30
-ARGS = ["--agent", "agent=oracle", "--conditions", "agent,human"]
+ARGS = ["--agent", "agent=oracle", "--conditions", "agent,human", "--enrol-limit", "0"]  # every participant comes from loopback
 
 
 def stored_tries(db: Path) -> int:

@@ -14,7 +14,7 @@ import pytest
 
 from rllib_conv.common.user_study_table import USER_STUDY_GOOD_ARMS, load_user_study
 from rllib_conv.envs.bandit import user_study_prizes
-from rllib_conv.envs.convention_keys import bandit_context
+from rllib_conv.envs.bandit.keys import bandit_context
 from rllib_conv.partners.bandit import BanditConventionPartner
 from rllib_conv.partners.blocks import TEST_PERMUTATIONS, TRAIN_PERMUTATIONS, PermutationPartner
 from rllib_conv.play.agent import AdaptiveAgent, bandit_oracle_prior, responder_prior, uniform_prior
@@ -83,7 +83,7 @@ def test_two_people_play_the_whole_study_and_it_is_stored_in_the_user_study_form
         view = room.view(1)
         assert (view["task"], view["context"], view["try"], view["played"], view["step"]) == (task, context, attempt, i, i)
         if (task, context, attempt) == ("test", "A", 1):
-            assert view["status"].startswith("The Test task starts: the green arms have changed.")
+            assert view["status"].startswith("Part 2 starts: the green arms have changed.")  # lay words, not "Test task"
         assert [a["prize"] > 0 for a in view["arms"]] == [a in good(task, context) for a in range(1, 5)]
         a1 = good(task, context)[0]
         a2 = good(task, context)[-1] if attempt == 1 else a1  # they disagree on try 1 of symmetric contexts

@@ -15,6 +15,8 @@ from rllib_conv.play.conditions import build_settings
 from rllib_conv.play.ego_run import EgoRun, load_run, require_user_study
 from tests.play.servers import ADMIN_TOKEN
 
+pytestmark = pytest.mark.slow  # every test here trains (RLlib, Tune or `rllib-conv` subprocesses)
+
 
 def test_a_trained_ego_gives_the_prior_and_its_seat(study_ego: Path, tmp_path: Path) -> None:
     run = load_run(study_ego)
@@ -37,7 +39,7 @@ def test_the_posterior_adapter_reads_the_runs_heads_and_training_partners(study_
     assert build_settings(study_ego).condition("agent").agent.conventions is None  # the paper's agent by default
     with pytest.raises(ValueError, match="--adapter posterior: --agent baseline=oracle has no training partners' heads"):
         build_settings(agents=["baseline=oracle"], adapter="posterior")
-    with pytest.raises(ValueError, match="--adapter must be one of \\['table', 'posterior'\\], got 'bayes'"):
+    with pytest.raises(ValueError, match="--adapter must be one of \\['fresh', 'posterior'\\] \\(or the old spelling 'table'\\), got 'bayes'"):
         build_settings(study_ego, adapter="bayes")
 
 
@@ -72,6 +74,7 @@ def test_folders_that_are_not_one_usable_trial_are_refused(study_ego: Path, tmp_
 def test_the_play_command_serves_a_trained_ego_until_ctrl_c(study_ego: Path, study_process, tmp_path: Path) -> None:
     server = study_process([str(study_ego), "--port", "0", "--out", str(tmp_path / "study")])
     assert any("admin page: http://127.0.0.1:" in line for line in server.lines)
+    assert not [line for line in server.lines if "Deprecation" in line], server.lines  # RLlib's, while the ego loads (issue 47)
     with httpx.Client(base_url=server.url, timeout=10) as c:
         info = c.get("/api/info").json()
         p = c.post("/api/participants", json={"consent": True, "participant": "p1"}).json()

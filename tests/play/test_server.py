@@ -29,14 +29,22 @@ def client(server: StudyServer):
         yield c
 
 
-def enrol(client: httpx.Client, pid: str) -> dict:
-    r = client.post("/api/participants", json={"consent": True, "participant": pid})
+def enrol(client: httpx.Client, pid: str, token: str | None = None) -> dict:
+    r = client.post("/api/participants", json={"consent": True, "participant": pid} | ({"token": token} if token else {}))
     assert r.status_code == 200, r.text
     return r.json()
 
 
 def test_pages_and_static_files_are_served_with_safe_headers(client: httpx.Client) -> None:
-    for path, kind, marker in [("/", "text/html", 'id="consent"'), ("/admin", "text/html", 'id="conditions"'), ("/static/app.js", "text/javascript", "WebSocket"), ("/static/style.css", "text/css", ".arm")]:
+    pages = [
+        ("/", "text/html", 'id="consent"'),
+        ("/admin", "text/html", 'id="conditions"'),
+        ("/static/app.js", "text/javascript", "WebSocket"),
+        ("/static/style.css", "text/css", ".arm"),
+        ("/favicon.ico", "image/svg+xml", "<svg"),  # browsers ask for it: no 404 in the console
+        ("/static/favicon.svg", "image/svg+xml", "<svg"),
+    ]
+    for path, kind, marker in pages:
         r = client.get(path)
         assert r.status_code == 200 and r.headers["content-type"].startswith(kind) and marker in r.text, path
         assert r.headers["x-content-type-options"] == "nosniff" and r.headers["referrer-policy"] == "no-referrer"
@@ -80,7 +88,7 @@ def test_a_session_over_http_with_retries_that_never_play_twice(client: httpx.Cl
     again = client.post("/api/move", json={"token": token, "step": 0, "arm": 1})  # the retry of a lost answer
     assert again.status_code == 409 and "already played" in again.json()["error"]
     assert client.get(f"/api/session?token={token}").json()["played"] == 1
-    assert enrol(client, p["participant"])["token"] == token  # enrolling again resumes
+    assert enrol(client, p["participant"], token)["token"] == token  # enrolling again with the page's token resumes
 
 
 def test_live_views_are_pushed_and_strangers_are_refused(server: StudyServer, client: httpx.Client) -> None:
@@ -144,3 +152,33 @@ def test_command_line_arguments_are_checked(tmp_path: Path, capsys, server: Stud
     assert main(["play", "--out", str(tmp_path / "file")]) == 2
     assert "is a file; expected the study folder" in capsys.readouterr().err
     assert not (tmp_path / "o").exists()  # nothing was created by a refused start
+
+
+def test_an_id_without_its_token_gets_409_and_never_the_token(server: StudyServer, client: httpx.Client) -> None:
+    first = enrol(client, "5f1e2d3c4b5a69788796a5b4")
+    for body in ({}, {"token": "guess"}, {"token": None}):
+        r = client.post("/api/participants", json={"consent": True, "participant": first["participant"], **body})
+        assert r.status_code == 409 and first["token"] not in r.text and "another browser" in r.json()["error"], r.text
+    lone_surrogate = b'{"consent": true, "participant": "%s", "token": "\\ud800"}' % first["participant"].encode()
+    r = client.post("/api/participants", content=lone_surrogate, headers={"content-type": "application/json"})
+    assert r.status_code == 409, r.text  # not a 500 from encoding the token
+    taken = client.post("/api/move", json={"token": first["token"], "step": 0, "arm": 1})  # the owner still plays
+    assert taken.status_code in (200, 409), taken.text
+    status = client.get("/api/admin/status", headers={"Authorization": f"Bearer {ADMIN_TOKEN}"}).json()
+    assert status["refused_resumes"] == 4 and status["recent_refused"] == [first["participant"]] * 4
+    assert status["participants"] == 1
+    assert enrol(client, first["participant"], first["token"])["token"] == first["token"]
+
+
+def test_enrolment_is_rate_limited_per_client(serve) -> None:
+    srv = serve(oracle_study("agent"), enrol_limit=3)
+    with httpx.Client(base_url=srv.url, timeout=10) as c:
+        answers = [c.post("/api/participants", json={"consent": True}) for _ in range(5)]
+        assert [r.status_code for r in answers] == [200, 200, 200, 429, 429]
+        assert "too many enrolments" in answers[3].json()["error"] and 1 <= int(answers[3].headers["retry-after"]) <= 60
+        assert c.get("/api/info").status_code == 200  # only enrolment is limited
+        status = c.get("/api/admin/status", headers={"Authorization": f"Bearer {ADMIN_TOKEN}"}).json()
+    assert status["participants"] == 3
+    unlimited = serve(oracle_study("agent"), enrol_limit=0)
+    with httpx.Client(base_url=unlimited.url, timeout=10) as c:
+        assert {c.post("/api/participants", json={"consent": True}).status_code for _ in range(30)} == {200}

@@ -69,7 +69,7 @@ def test_consent_and_ids_are_checked(make) -> None:
         with pytest.raises(PlayError, match="consent must be true") as err:
             study.enrol("p1", consent)
         assert err.value.status == 400
-    for bad in ("", "a b", "x" * 65, 42, ["p"], "é"):
+    for bad in ("", "a b", "x" * 65, 42, ["p"], "é", "p1\n", "\np1"):  # a trailing newline slipped past `$`
         with pytest.raises(PlayError, match="participant must be an id of 1-64 letters") as err:
             study.enrol(bad, True)
         assert err.value.status == 400
@@ -77,7 +77,7 @@ def test_consent_and_ids_are_checked(make) -> None:
     assert p.id == "5f1e2d3c4b5a69788796a5b4" and study.participant(p.token) is p
     generated = study.enrol(None, True)
     assert generated.id.startswith("anon-") and generated.token != p.token
-    assert study.enrol(p.id, True) is p  # the same id resumes, never a second enrolment
+    assert study.enrol(p.id, True, token=p.token) is p  # the same id with its token resumes, never a second enrolment
     with pytest.raises(PlayError, match="unknown or missing participant token") as err:
         study.participant("forged")
     assert err.value.status == 403
@@ -167,7 +167,7 @@ def test_a_restarted_study_resumes_everyone_by_id(make) -> None:
 
     again = make()  # the server was killed and started on the same database
     for pid, p in people.items():
-        resumed = again.enrol(pid, True)
+        resumed = again.enrol(pid, True, token=p.token)  # the token the page kept
         assert (resumed.token, resumed.condition, resumed.pair, resumed.seat) == (p.token, p.condition, p.pair, p.seat)
         view = again.view(resumed)
         for key in ("phase", "step", "history", "score", "your_choice", "partner_chose", "partner"):
@@ -280,3 +280,20 @@ def test_a_blocks_posterior_agent_sits_only_in_the_trained_seat(make, blocks_con
     participant = study.enrol("p1", True)
     room = study.rooms[participant.pair]
     assert isinstance(room.agent, ConventionAgent) is wrapped and room.agent_seat == 3 - person_seat
+
+
+def test_an_id_alone_never_takes_over_a_session(make) -> None:
+    """Ids travel in URLs others see: re-enrolling with one needs the token its enrolment gave, else 409, counted for the admin."""
+    study = make()
+    p = study.enrol("5f1e2d3c4b5a69788796a5b4", True)
+    for token in (None, "", "forged", p.token[:-1], 42, ["x"]):
+        with pytest.raises(PlayError, match="already been used to start a session in another browser") as err:
+            study.enrol(p.id, True, token=token)
+        assert err.value.status == 409 and p.token not in err.value.message
+    other = study.enrol("someone-else", True)
+    with pytest.raises(PlayError):
+        study.enrol(p.id, True, token=other.token)  # another participant's token is not this one's
+    assert study.enrol(p.id, True, token=p.token) is p
+    status = study.status()
+    assert status["refused_resumes"] == 7 and status["recent_refused"] == [p.id] * 7 and status["participants"] == 2
+    assert make().status()["refused_resumes"] == 7  # kept in the database across restarts

@@ -25,7 +25,9 @@ function cellsOf(c) {
 function render(s) {
   document.body.dataset.phase = "ready";
   const total = s.conditions.reduce((n, c) => n + c.finished, 0);
-  $("summary").textContent = `${s.game} study · ${s.participants} participants · ${total} finished · ${s.connected} connected now`;
+  const refused = s.refused_resumes ? ` · ${s.refused_resumes} refused re-enrolment${s.refused_resumes === 1 ? "" : "s"} ` +
+    `(a participant id sent without its session token${s.recent_refused.length ? ": latest " + s.recent_refused.slice(-5).join(", ") : ""})` : "";
+  $("summary").textContent = `${s.game} study · ${s.participants} participants · ${total} finished · ${s.connected} connected now` + refused;
   const body = $("conditions").querySelector("tbody");
   body.replaceChildren(...s.conditions.map((c) => {
     const tr = document.createElement("tr");
@@ -61,6 +63,8 @@ async function refresh() {
     $("error").textContent = e.message;
     $("error").hidden = false;
     if (e.status === 401 || e.status === 403) {
+      document.body.dataset.phase = "login";
+      $("summary").textContent = "Enter the admin token.";  // not "Loading…" beside the error
       $("login").hidden = false;
       $("dashboard").hidden = true;
       return;  // no polling with a wrong token

@@ -8,6 +8,12 @@ const CELLS = ["top-left", "top-right", "bottom-left", "bottom-right"];
 // Where recruitment platforms put the participant's id in the study link.
 const ID_PARAMS = ["participant", "PROLIFIC_PID", "workerId"];
 const STORE_KEY = "rllib-conv-study";
+// The ids the server accepts (rllib_conv/play/study.py PARTICIPANT_ID).
+const VALID_ID = /^[A-Za-z0-9._-]{1,64}$/;
+const BAD_LINK = "This study link is incomplete or damaged, so we cannot tell who you are. Please go back to the " +
+  "study platform (for example Prolific) and open the study from there again. If this keeps happening, please " +
+  "contact the researcher. Nothing has been recorded.";
+const PART = { train: "Part 1", test: "Part 2" };
 
 // --- talking to the server ------------------------------------------------------------
 async function api(method, path, body) {
@@ -54,15 +60,22 @@ async function guarded(action) {
 const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
 
 function show(which) {
-  for (const id of ["consent", "instructions", "game"]) $(id).hidden = id !== which;
+  for (const id of ["consent", "instructions", "game", "bad-link"]) $(id).hidden = id !== which;
+}
+
+// A participant id the server would refuse: say so in plain words, instead of a technical error after consent.
+function badLink() {
+  $("bad-link-text").textContent = BAD_LINK;
+  document.body.dataset.phase = "bad_link";
+  show("bad-link");
 }
 
 // --- consent, instructions, enrolment ---------------------------------------------------
 const RULES = {
-  bandit: "Each round shows a context (A, B or C) and four arms; green arms carry a prize. You and your partner each " +
+  bandit: "Each try shows one of three situations (A, B or C) and four arms; green arms carry a prize. You and your partner each " +
     "pick an arm without seeing the other's pick, and win the prize only if you both pick the same green arm. " +
-    "Both picks are shown after every round. Five rounds per context; first the Train task, then the Test task, " +
-    "where the green arms change.",
+    "Both picks are shown after every try. Five tries per situation. The game has two parts; in Part 2 " +
+    "the green arms change.",
   blocks: "P1 (red) sees the goal grid, P2 (blue) does not. Moves alternate, P1 first, six moves in all: place your " +
     "block on a cell (it moves there, pushing out whatever was on that cell), remove it, or pass. Each block on its goal " +
     "cell at the end scores 10 points. The goal is shown to both once the game is over.",
@@ -107,6 +120,7 @@ async function init() {
 
   // A page reloaded (or reopened) in the same browser resumes without asking again.
   const wanted = urlParticipant();
+  if (wanted !== null && !VALID_ID.test(wanted)) { badLink(); return; }
   const mine = saved();
   if (mine && mine.token && (!wanted || wanted === mine.participant)) {
     try {
@@ -124,7 +138,16 @@ async function enrol() {
   const body = { consent: $("agree").checked };
   const id = urlParticipant();
   if (id) body.participant = id;
-  const r = await api("POST", "/api/participants", body);
+  // Re-enrolling an id resumes only with the token its first enrolment gave this browser.
+  const mine = saved();
+  if (id && mine && mine.participant === id && mine.token) body.token = mine.token;
+  let r;
+  try {
+    r = await api("POST", "/api/participants", body);
+  } catch (e) {
+    if (e.status === 400 && /^participant must be/.test(e.message)) { badLink(); return; }
+    throw e;
+  }
   save(r.participant, r.token);
   enter(r.participant, r.token, r.view);
 }
@@ -181,10 +204,12 @@ function render(s) {
   document.body.dataset.played = String(s.played);
   document.body.dataset.version = String(s.version);
   const seated = s.you !== undefined;
+  const over = s.phase === "finished" || s.phase === "ended";
+  // Nobody to name once a session ended before it had a partner: no "waiting · partner: not yet found".
+  $("room-line").hidden = !seated && over;
   $("you").textContent = !seated ? "waiting" : s.game === "bandit" ? `Player ${s.you}` : `P${s.you} (${s.colour})`;
   $("partner").textContent = s.partner === "agent" ? "an AI agent" : s.partner === "person" ? "another participant" : "not yet found";
   $("status").textContent = s.status;
-  const over = s.phase === "finished" || s.phase === "ended";
   $("done").hidden = !s.completion_code;
   $("completion-code").textContent = s.completion_code || "";
   $("bandit").hidden = s.game !== "bandit" || over || !seated;
@@ -201,7 +226,7 @@ function render(s) {
 }
 
 function renderBandit(s) {
-  $("where").textContent = s.task ? `${s.task_label} · context ${s.context} · try ${s.try} of ${s.tries}` : "";
+  $("where").textContent = s.task ? `${s.task_label} · situation ${s.context} · try ${s.try} of ${s.tries}` : "";
   const arms = $("arms");
   arms.replaceChildren();
   for (const a of s.arms) {
@@ -218,16 +243,15 @@ function renderBandit(s) {
   const last = $("last");
   if (s.last) {
     const l = s.last;
-    const task = l.task === "train" ? "Train" : "Test";
-    last.textContent = `Last try (${task} task, context ${l.context}, try ${l.try}): you pulled arm ${l.you}, ` +
+    last.textContent = `Last try (${PART[l.task]}, situation ${l.context}, try ${l.try}): you pulled arm ${l.you}, ` +
       `${partnerName(s)} pulled arm ${l.partner}: ${l.prize > 0 ? "prize " + l.prize + "!" : "no prize."}`;
     last.className = "last" + (l.prize > 0 ? " win" : "");
   } else {
     last.textContent = "No try played yet.";
     last.className = "last";
   }
-  const rows = s.history.map((h) => `<tr><td>${h.task === "train" ? "Train" : "Test"}</td><td>${h.context}</td><td>${h.try}</td><td>${h.you}</td><td>${h.partner}</td><td>${h.prize}</td></tr>`);
-  $("history").innerHTML = "<tr><th>task</th><th>context</th><th>try</th><th>your arm</th><th>partner's arm</th><th>prize</th></tr>" + rows.join("");
+  const rows = s.history.map((h) => `<tr><td>${PART[h.task]}</td><td>${h.context}</td><td>${h.try}</td><td>${h.you}</td><td>${h.partner}</td><td>${h.prize}</td></tr>`);
+  $("history").innerHTML = "<tr><th>part</th><th>situation</th><th>try</th><th>your arm</th><th>partner's arm</th><th>prize</th></tr>" + rows.join("");
 }
 
 // A grid cell: a button on the working grid, a plain box elsewhere (goal, past games).
