@@ -1,4 +1,4 @@
-# The README's two commands: `make demo` (main job) and `make test` (whole suite).
+# The README's two commands: `make demo` (main job) and `make test` (lint, then the whole suite).
 # Both create the virtual environment they need, idempotently: torch first (the local
 # CPU wheel; a loose torch requirement would pull GBs of CUDA packages), then the package.
 SHELL := /bin/bash
@@ -11,13 +11,23 @@ export OMP_NUM_THREADS ?= 1
 export CMAKE_POLICY_VERSION_MINIMUM := 3.5
 export PIP_DISABLE_PIP_VERSION_CHECK := 1
 
-.PHONY: demo test venv bench clean chromium
+.PHONY: demo test test-fast lint venv bench clean chromium
 
 demo: $(STAMP)
 	$(BIN)/rllib-conv demo
 
-test: $(STAMP) chromium
+test: $(STAMP) chromium lint
 	$(BIN)/python -m pytest -q
+
+# The inner loop: every test that does not train (`-m "not slow"`; see tests/conftest.py), in
+# under 2 minutes on 2 cores. `make test` runs these and the training ones.
+test-fast: $(STAMP) chromium
+	$(BIN)/python -m pytest -q -m "not slow"
+
+# ruff's rules and format, as configured in pyproject.toml ([tool.ruff]); CI runs it through `make test`.
+lint: $(STAMP)
+	$(BIN)/ruff check .
+	$(BIN)/ruff format --check .
 
 venv: $(STAMP)
 
@@ -26,8 +36,9 @@ venv: $(STAMP)
 chromium:
 	command -v chromium >/dev/null || (apt-get update && DEBIAN_FRONTEND=noninteractive apt-get install -y chromium)
 
+# The quickest benchmark (about a minute); every script and its latest result: benchmarks/README.md.
 bench: $(STAMP)
-	$(BIN)/python benchmarks/env_throughput.py
+	$(BIN)/python -m benchmarks.env_throughput
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)

@@ -24,28 +24,38 @@ from matplotlib.figure import Figure  # noqa: E402
 
 from analysis.paper import label_name, population_name  # noqa: E402
 from analysis.summaries import curve_band, seed_summary, with_value  # noqa: E402
+from rllib_conv.common.methods import (  # noqa: E402
+    BEYOND_GUARDED,
+    BEYOND_POSTERIOR,
+    HEAD_PENALTY,
+    HEAD_PENALTY_PICKED,
+    LAM0,
+    LAM03,
+    LOW_Z,
+    PAPER_METHOD,
+    PICKED,
+    SCRATCH,
+)
+from rllib_conv.common.methods import LABELS as LABEL_ORDER  # noqa: E402  (methods in the order of the paper's legends)
 
-# Methods in the order of the paper's legends.
-LABEL_ORDER: tuple[str, ...] = ("modular-lam0", "modular-lam0.3", "modular-lam0.5", "modular-lam0.5-hl0.01", "modular-lam0.5-pick", "modular-lam0.5-hl0.01-pick", "beyond-posterior", "beyond-guarded", "lowz-lam0.5", "agg", "no_task_logits", "maml", "oracle", "scratch")
-PAPER_METHOD = "modular-lam0.5"
 # (colour, line style) per method: no two colours alike, and every method but the paper's and the
 # baselines with a dash pattern of its own. The paper's method, the baselines, the oracle and
 # scratch take the Okabe-Ito colours (colour-blind safe: Okabe & Ito 2008), ours' variants Tol's muted ones.
 LABEL_STYLES: dict[str, tuple[str, str | tuple]] = {
-    "modular-lam0.5": ("#D55E00", "-"),  # vermillion: the paper's method
+    PAPER_METHOD: ("#D55E00", "-"),  # vermillion: the paper's method
     "agg": ("#0072B2", "-"),  # blue
     "no_task_logits": ("#56B4E9", "-."),  # sky blue
     "maml": ("#CC79A7", "-"),  # reddish purple
     "oracle": ("#009E73", "-"),  # bluish green (the paper's "green oracle curve")
-    "scratch": ("#000000", ":"),
-    "modular-lam0": ("#E69F00", "--"),  # orange
-    "modular-lam0.3": ("#882255", (0, (3, 1, 1, 1))),  # wine, dash-dot
-    "lowz-lam0.5": ("#332288", (0, (6, 1.5))),  # indigo, long dashes (dots read as from scratch's black)
-    "modular-lam0.5-hl0.01": ("#44AA99", (0, (5, 1, 1, 1, 1, 1))),  # teal, dash-dot-dot (not in the paper)
-    "modular-lam0.5-pick": ("#999933", (0, (8, 2))),  # olive, long dashes (not in the paper)
-    "modular-lam0.5-hl0.01-pick": ("#888888", (0, (8, 2, 1, 2))),  # grey, long dash-dot (not in the paper)
-    "beyond-posterior": ("#661100", "-"),  # dark brown, solid: the adapter beyond the paper
-    "beyond-guarded": ("#CC6677", (0, (4, 2))),  # rose, dashes: the same adapter, its fine-tuning guarded
+    SCRATCH: ("#000000", ":"),
+    LAM0: ("#E69F00", "--"),  # orange
+    LAM03: ("#882255", (0, (3, 1, 1, 1))),  # wine, dash-dot
+    LOW_Z: ("#332288", (0, (6, 1.5))),  # indigo, long dashes (dots read as from scratch's black)
+    HEAD_PENALTY: ("#44AA99", (0, (5, 1, 1, 1, 1, 1))),  # teal, dash-dot-dot (not in the paper)
+    PICKED: ("#999933", (0, (8, 2))),  # olive, long dashes (not in the paper)
+    HEAD_PENALTY_PICKED: ("#888888", (0, (8, 2, 1, 2))),  # grey, long dash-dot (not in the paper)
+    BEYOND_POSTERIOR: ("#661100", "-"),  # dark brown, solid: the adapter beyond the paper
+    BEYOND_GUARDED: ("#CC6677", (0, (4, 2))),  # rose, dashes: the same adapter, its fine-tuning guarded
 }
 OTHER_STYLE: tuple[str, str | tuple] = ("#117733", (0, (1, 3)))  # any label not listed: Tol's green, sparse dots
 TASK_COLOURS = {"train": "0.8", "test": "#E69F00"}  # the paper's grey and orange bars (orange: Okabe-Ito)

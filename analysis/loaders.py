@@ -8,8 +8,8 @@ be built from a partial or still-running reproduction.
 
 Identifiers shared by the frames: `game` (plan.json's game, else the folder name),
 `population` and `label` (from the experiment name `<population>__<label>`, where label
-is the method label such as `modular-lam0.5`, `lowz-lam0.5`, `agg`, `no_task_logits`,
-`maml`, `oracle`, `scratch`), `run` (a trained ego's trial folder), `trial` (its folder name).
+is the variant's label, `rllib_conv.common.methods.LABELS` for the shipped plans, such as
+`modular-lam0.5`, `agg`, `scratch`), `run` (a trained ego's trial folder), `trial` (its folder name).
 """
 
 from __future__ import annotations
@@ -50,7 +50,8 @@ from rllib_conv.common.user_study_table import load_user_study
 
 # Columns that may hold the environment-step counter, in order of preference (ours, new RLlib API, old Tune).
 STEP_COLUMNS: tuple[str, ...] = ("env_steps", "num_env_steps_sampled_lifetime", "timesteps_total")
-# Highest score per game: 1 coordinated pull; 2 blocks x 10 points; 5 Hanabi cards.
+# Highest score of the paper's games (1 coordinated pull; 2 blocks x 10 points; 5 Hanabi cards), for
+# folders written before plan.json carried the game's own (`max_score`).
 MAX_SCORE: dict[str, float] = {"bandit": 1.0, "blocks": 20.0, "hanabi": 5.0}
 
 def _is_game_dir(path: Path) -> bool:
@@ -74,6 +75,14 @@ def read_plan(game_dir: str | Path) -> dict[str, Any]:
     plan = json.loads(path.read_text()) if path.is_file() else {}
     plan.setdefault("game", game_dir.name)
     return plan
+
+
+def max_score(plan: dict[str, Any]) -> float:
+    """The best score an episode of `plan`'s game can reach: plan.json's `report.max_score`, which the run
+    wrote from the game's record; older folders: `MAX_SCORE`; nan if neither knows the game."""
+    value = plan.get("report", {}).get("max_score")
+    value = MAX_SCORE.get(str(plan.get("game"))) if value is None else value
+    return float("nan") if value is None else float(value)
 
 
 def game_of(game_dir: str | Path) -> str:
@@ -330,7 +339,7 @@ def read_stage_csv(path: str | Path, game: str = "") -> pd.DataFrame:
     path = Path(path)
     table = pd.read_csv(path)
     population, label = split_experiment(path.stem)
-    labels = [label] * len(table) if label else [_method_label(m, lam) for m, lam in zip(table["method"], table.get("lam", [0.0] * len(table)))]
+    labels = [label] * len(table) if label else [methods.row_label(m, lam) for m, lam in zip(table["method"], table.get("lam", [0.0] * len(table)))]
     table.insert(0, "label", labels)
     table.insert(0, "population", population)
     table.insert(0, "game", game)
@@ -340,12 +349,6 @@ def read_stage_csv(path: str | Path, game: str = "") -> pd.DataFrame:
     if "exact_return" not in table.columns:
         table["exact_return"] = float("nan")
     return table
-
-
-def _method_label(method: str, lam: float) -> str:
-    """A row's label from its method and lam: `modular-lam0.5` as reproduce names it for a regularised method with lam > 0, else the method."""
-    regularised = method in methods.METHODS and methods.method(method).regularised
-    return f"{method}-lam{float(lam):g}" if regularised and float(lam) > 0 else str(method)
 
 
 def _read_tables(root: str | Path, folder: str) -> list[pd.DataFrame]:

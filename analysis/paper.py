@@ -1,7 +1,7 @@
 """The paper's numbers and claims, as read from its LaTeX source, each with where it comes from.
 
 Source: Shih et al., "On the Critical Role of Conventions in Adaptive Human-AI
-Collaboration", ICLR 2021 (`/work/shared/paper/conventions-iclr2021.tex`). Bar charts
+Collaboration", ICLR 2021 (its LaTeX source, as posted on arXiv: 2104.02871). Bar charts
 in the .tex are pgfplots tables, so their values are exact; the adaptation curves
 (fig:armsexp, fig:armsexpselfplay, fig:blockshanabiexp) are images not in the source,
 so for them only the text's claims are recorded. Where a number's identity is inferred
@@ -9,7 +9,7 @@ so for them only the text's claims are recorded. Where a number's identity is in
 
 Keys use this project's names: populations `bandit-s<m>-hand` ("Arms m", hand-designed
 partners), `bandit-s<m>-selfplay`, `bandit-user-study`, `blocks-perm`, `blocks-selfplay`,
-`hanabi-selfplay`; method labels as in `rllib_conv.pipelines.reproduce`
+`hanabi-selfplay`; method labels as in `rllib_conv.common.methods`
 (`modular-lam0.5` = ours with lambda 0.5, `no_task_logits` = BaselineModular, `agg` =
 BaselineAgg, `maml` = First-Order MAML, `oracle` = oracle marginals).
 """
@@ -17,6 +17,19 @@ BaselineAgg, `maml` = First-Order MAML, `oracle` = oracle marginals).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+
+from rllib_conv.common.methods import (
+    BEYOND_GUARDED,
+    BEYOND_POSTERIOR,
+    HEAD_PENALTY,
+    HEAD_PENALTY_PICKED,
+    LAM0,
+    LAM03,
+    LOW_Z,
+    PAPER_METHOD,
+    PICKED,
+    SCRATCH,
+)
 
 
 @dataclass(frozen=True)
@@ -58,20 +71,20 @@ class FigureSpec:
 # --- display names -------------------------------------------------------------------------
 
 LABEL_NAMES: dict[str, str] = {
-    "modular-lam0": "ours λ=0.0",
-    "modular-lam0.3": "ours λ=0.3",
-    "modular-lam0.5": "ours λ=0.5",
-    "modular-lam0.5-hl0.01": "ours λ=0.5 + head penalty",
-    "modular-lam0.5-pick": "ours λ=0.5, adapting from a picked head",
-    "modular-lam0.5-hl0.01-pick": "ours λ=0.5 + head penalty, adapting from a picked head",
-    "beyond-posterior": "convention posterior (beyond the paper)",
-    "beyond-guarded": "guarded convention posterior (beyond the paper)",
-    "lowz-lam0.5": "ours λ=0.5, low-dim z",
+    LAM0: "ours λ=0.0",
+    LAM03: "ours λ=0.3",
+    PAPER_METHOD: "ours λ=0.5",
+    HEAD_PENALTY: "ours λ=0.5 + head penalty",
+    PICKED: "ours λ=0.5, adapting from a picked head",
+    HEAD_PENALTY_PICKED: "ours λ=0.5 + head penalty, adapting from a picked head",
+    BEYOND_POSTERIOR: "convention posterior (beyond the paper)",
+    BEYOND_GUARDED: "guarded convention posterior (beyond the paper)",
+    LOW_Z: "ours λ=0.5, low-dim z",
     "agg": "BaselineAgg",
     "no_task_logits": "BaselineModular",
     "maml": "First-Order MAML",
     "oracle": "oracle marginals",
-    "scratch": "from scratch",
+    SCRATCH: "from scratch",
 }
 
 POPULATION_NAMES: dict[str, str] = {
@@ -158,7 +171,7 @@ _MARG = "fig:marginals, pgfplots tables \\dtone..\\dtsix"
 # orange is λ 0.5 in fig:zeroshot), L1 = λ 0.0 ("even without regularization ... lower than the
 # baselines"), L3 between them (most likely λ 0.3), L5 and L6 the two baselines with a task
 # output (BaselineAgg and First-Order MAML; BaselineModular is excluded by the caption), order unknown.
-MARGINAL_SERIES: dict[str, str | None] = {"L1": "modular-lam0", "L3": "modular-lam0.3", "L4": "modular-lam0.5", "L5": None, "L6": None}
+MARGINAL_SERIES: dict[str, str | None] = {"L1": LAM0, "L3": LAM03, "L4": PAPER_METHOD, "L5": None, "L6": None}
 MARGINAL_SERIES_NOTE: dict[str, str] = {
     "L1": "λ=0.0 (from the caption's text)",
     "L3": "λ=0.3 (inferred: the bar between λ=0.0 and λ=0.5; the legend image is not in the source)",
@@ -188,13 +201,13 @@ MARGINAL_CLAIMS: tuple[Claim, ...] = (
 
 _ZS = "fig:zeroshot, pgfplots tables \\dttwo (orange, λ=0.5), \\dtfive (grey, BaselineModular), \\dttwoblocks, \\dtfiveblocks"
 ZEROSHOT: dict[tuple[str, str], PaperNumber] = {
-    ("bandit-s1-hand", "modular-lam0.5"): PaperNumber(0.99, _ZS),
+    ("bandit-s1-hand", PAPER_METHOD): PaperNumber(0.99, _ZS),
     ("bandit-s1-hand", "no_task_logits"): PaperNumber(0.30, _ZS),
-    ("bandit-s2-hand", "modular-lam0.5"): PaperNumber(0.89, _ZS),
+    ("bandit-s2-hand", PAPER_METHOD): PaperNumber(0.89, _ZS),
     ("bandit-s2-hand", "no_task_logits"): PaperNumber(0.55, _ZS),
-    ("bandit-s3-hand", "modular-lam0.5"): PaperNumber(0.91, _ZS),
+    ("bandit-s3-hand", PAPER_METHOD): PaperNumber(0.91, _ZS),
     ("bandit-s3-hand", "no_task_logits"): PaperNumber(0.56, _ZS),
-    ("blocks-perm", "modular-lam0.5"): PaperNumber(17.68, _ZS, note="score out of 20"),
+    ("blocks-perm", PAPER_METHOD): PaperNumber(17.68, _ZS, note="score out of 20"),
     ("blocks-perm", "no_task_logits"): PaperNumber(13.17, _ZS, note="score out of 20"),
 }
 ZEROSHOT_CLAIMS: tuple[Claim, ...] = (
@@ -241,12 +254,12 @@ MAX_SCORE: dict[str, PaperNumber] = {
 
 # --- the released code, measured by this project (NOT the paper) -----------------------------------
 
-_NOTES = "shared/notes/original-code.md: the authors' released code run on our machine (bandit, 4 contexts, 2 symmetric, 4 hand-designed test partners)"
+_NOTES = "docs/differences.md#the-released-code-measured-by-this-project: the authors' released code run on our machine (bandit, 4 contexts, 2 symmetric, 4 hand-designed test partners)"
 RELEASED_CODE_ADAPTATION: dict[str, tuple[PaperNumber, PaperNumber]] = {
     # label: (return at step 0, return at the last step, 240) averaged over 4 test partners
-    "modular-lam0.5": (PaperNumber(0.74, _NOTES), PaperNumber(0.89, _NOTES, note="noisy; one partner fell back to 0.60")),
+    PAPER_METHOD: (PaperNumber(0.74, _NOTES), PaperNumber(0.89, _NOTES, note="noisy; one partner fell back to 0.60")),
     "oracle": (PaperNumber(0.73, _NOTES), PaperNumber(1.00, _NOTES, note="1.00 by step 112")),
-    "scratch": (PaperNumber(0.14, _NOTES), PaperNumber(0.67, _NOTES)),
+    SCRATCH: (PaperNumber(0.14, _NOTES), PaperNumber(0.67, _NOTES)),
     "agg": (PaperNumber(0.70, _NOTES), PaperNumber(0.70, _NOTES, note="flat")),
 }
 RELEASED_CODE_POPULATION = "bandit-s2-hand"

@@ -1,4 +1,10 @@
-"""Shared test set-up: one torch thread, quiet warnings from PettingZoo's Dict-observation checks."""
+"""Shared test set-up: one torch thread, the trained-ego fixtures, and the `slow` mark on every test that trains.
+
+`make test-fast` (`pytest -m "not slow"`) must never train: each test that builds an RLlib
+algorithm, runs Tune or starts a training subprocess carries `@pytest.mark.slow` (or its
+file's `pytestmark`). A test reaching `ray_session` without the mark is marked here, with a
+warning that names it, so a forgotten mark costs the fast loop nothing.
+"""
 
 import os
 
@@ -9,6 +15,19 @@ from dataclasses import dataclass
 from typing import Any
 
 import pytest
+
+# Fixtures that start Ray to train: a test using one, directly or through another fixture, trains.
+TRAINING_FIXTURES = ("ray_session",)
+
+
+@pytest.hookimpl(tryfirst=True)  # before pytest's own hook deselects by `-m`
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Mark `slow` (and warn about) every collected test that reaches a training fixture without the mark."""
+    for item in items:
+        uses = [f for f in TRAINING_FIXTURES if f in getattr(item, "fixturenames", ())]
+        if uses and item.get_closest_marker("slow") is None:
+            item.add_marker(pytest.mark.slow)
+            item.warn(pytest.PytestWarning(f"{item.nodeid} trains (uses {uses[0]}) but has no @pytest.mark.slow; marked slow"))
 
 
 @pytest.fixture(scope="session")

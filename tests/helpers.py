@@ -11,7 +11,7 @@ from ray.rllib.core.columns import Columns
 from ray.rllib.evaluation.postprocessing import Postprocessing
 
 from rllib_conv.envs.replicated_game import ReplicatedGame, replicated_env_config
-from rllib_conv.modules.stacked_multi import STACK_ID
+from rllib_conv.modules.packed.stacked_multi import STACK_ID
 from rllib_conv.training.algorithm import Replica, build_ppo_config
 from rllib_conv.training.ego_setup import EgoSetup, resolve
 from rllib_conv.training.experiment import ExperimentConfig

@@ -5,6 +5,7 @@ Every other bad input: tests/test_cli_errors.py; help: tests/test_cli_help.py; w
 
 from __future__ import annotations
 
+import pytest
 import yaml
 
 from rllib_conv.cli import main
@@ -47,7 +48,9 @@ def test_bad_config_exits_2_with_one_line_and_writes_nothing(tmp_path, capsys) -
 def test_adapt_rejects_a_zero_pick_budget_before_anything_runs(tmp_path, capsys) -> None:
     out, storage = tmp_path / "curves", tmp_path / "runs"
     try:
-        status = main(["adapt", str(tmp_path), "--head-init", "pick", "--pick-steps", "0", "--out", str(out), "--storage", str(storage)])
+        status = main(
+            ["adapt", str(tmp_path), "--head-init", "pick", "--pick-steps", "0", "--out", str(out), "--storage", str(storage)]
+        )
     except SystemExit as exc:  # argparse refuses it
         status = exc.code
     assert status == 2
@@ -63,6 +66,7 @@ def test_unknown_population_is_reported_before_training(tmp_path, capsys) -> Non
     assert not (tmp_path / "runs").exists()
 
 
+@pytest.mark.slow
 def test_train_prints_a_summary_per_trial(ray_session, tmp_path, capsys) -> None:
     path = tmp_path / "exp.yaml"
     exp = {

@@ -30,7 +30,9 @@ def inputs(tmp_path: Path, monkeypatch) -> Path:
     (tmp_path / "a_folder").mkdir()
     trial = tmp_path / "trial"
     (trial / "checkpoint_000000").mkdir(parents=True)
-    (trial / "config.yaml").write_text(yaml.safe_dump(ExperimentConfig(population="bandit-s1-hand").resolve("bandit").model_dump()))
+    (trial / "config.yaml").write_text(
+        yaml.safe_dump(ExperimentConfig(population="bandit-s1-hand").resolve("bandit").model_dump())
+    )
     (tmp_path / "trial_badyaml").mkdir()
     (tmp_path / "trial_badyaml" / "config.yaml").write_text("lam: [0.5\n")
     (tmp_path / "trial_badschema").mkdir()
@@ -70,7 +72,10 @@ CASES = [
     (["adapt", "trial", "--set", "steps=0"], "--set steps=0: steps: Input should be greater than 0"),
     (["adapt", "trial", "--set", "every=[1"], "--set every=[1: not valid YAML"),
     (["adapt", "trial", "--pick-steps", "5"], "--pick-steps: pick_steps is set but head_init is 'fresh'"),
-    (["adapt", "trial", "--head-init", "pick", "--guard"], "arguments with --name, --guard: guard: true compares the adapting ego"),
+    (
+        ["adapt", "trial", "--head-init", "pick", "--guard"],
+        "arguments with --head-init, --guard: guard: true compares the adapting ego",
+    ),
     (["adapt", "trial", "--guard", "--set", "guard_z=0"], "--set guard_z=0: guard_z: Input should be greater than 0"),
     (["adapt", "trial", "--name", "a/b"], "--name: must be a non-empty folder name"),
     (["adapt", "trial", "--split", "dev"], "argument --split: invalid choice"),
@@ -83,8 +88,14 @@ CASES = [
     (["pair", "bandit-s1-hand:hand-train-0"], "SEATS: List should have at least 2 items"),
     (["pair", "bandit-s1-hand", "bandit-s1-hand:hand-train-0"], "seat 'bandit-s1-hand': expected SOURCE:WHAT"),
     (["pair", "bandit-s1-hand:hand-train-0", "bandit-s1-hand:hand-train-1", "--env", "chess"], "--env: unknown env 'chess'"),
-    (["pair", "bandit-s1-hand:hand-train-0", "bandit-s1-hand:hand-train-1", "--env-config", "{a"], "--env-config: not valid YAML"),
-    (["pair", "bandit-s1-hand:hand-train-0", "bandit-s1-hand:hand-train-1", "--env-config", "[1]"], "--env-config: Input should be a valid dictionary"),
+    (
+        ["pair", "bandit-s1-hand:hand-train-0", "bandit-s1-hand:hand-train-1", "--env-config", "{a"],
+        "--env-config: not valid YAML",
+    ),
+    (
+        ["pair", "bandit-s1-hand:hand-train-0", "bandit-s1-hand:hand-train-1", "--env-config", "[1]"],
+        "--env-config: Input should be a valid dictionary",
+    ),
     (["pair", "trial_badyaml:task", "bandit-s1-hand:hand-train-0"], "config.yaml' is not valid YAML"),
     (["pair", "nothing:x", "bandit-s1-hand:hand-train-0"], "seat 'nothing:x': 'nothing' is neither a partner kind"),
     (["pair", "bandit-s1-hand:nobody", "bandit-s1-hand:hand-train-0"], "population 'bandit-s1-hand' has no member 'nobody'"),

@@ -14,7 +14,9 @@ from rllib_conv.pipelines.adapt_config import AdaptConfig
 from rllib_conv.pipelines.zeroshot_config import ZeroShotConfig
 
 
-def commands(parser: argparse.ArgumentParser, prefix: tuple[str, ...] = ()) -> list[tuple[tuple[str, ...], argparse.ArgumentParser]]:
+def commands(
+    parser: argparse.ArgumentParser, prefix: tuple[str, ...] = ()
+) -> list[tuple[tuple[str, ...], argparse.ArgumentParser]]:
     """(words, parser) of every command, nested ones (`partners show`) included."""
     out = [(prefix, parser)]
     for action in parser._actions:
@@ -43,7 +45,9 @@ def test_help_lists_a_help_text_for_every_option(words, parser, capsys) -> None:
     for action in parser._actions:
         if isinstance(action, argparse._SubParsersAction):
             continue
-        assert action.help and action.help != argparse.SUPPRESS, f"{' '.join(words)} {action.option_strings or action.dest} has no help"
+        assert action.help and action.help != argparse.SUPPRESS, (
+            f"{' '.join(words)} {action.option_strings or action.dest} has no help"
+        )
         assert " ".join(action.help.split()[:4]) in shown
         for option in action.option_strings:
             assert option in shown
@@ -59,7 +63,11 @@ def test_version(capsys) -> None:
 @pytest.mark.parametrize(
     ("listed", "schema", "options"),
     [
-        (ADAPT_SET_KEYS, AdaptConfig, {"name", "runs", "population", "split", "partners", "method", "train_task", "head_init", "pick_steps", "guard"}),
+        (
+            ADAPT_SET_KEYS,
+            AdaptConfig,
+            {"name", "runs", "population", "split", "partners", "method", "train_task", "head_init", "pick_steps", "guard"},
+        ),
         (ZEROSHOT_SET_KEYS, ZeroShotConfig, {"name", "runs", "new_population"}),
     ],
     ids=["adapt", "zeroshot"],

@@ -7,6 +7,7 @@ One tiny ego (64 env steps on the bandit with 1 symmetric context) is trained on
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -24,7 +25,15 @@ from rllib_conv.pipelines.pair_config import PairConfig
 from rllib_conv.training.checkpoints import last_checkpoint
 from rllib_conv.training.evaluate import bandit_exact_return, ego_head_partner, load_module, task_probs
 
-TINY = {"name": "tiny", "population": "bandit-s1-hand", "model": {"hidden": 8}, "ppo": {"rollout_per_partner": 16, "num_epochs": 1}, "run": {"timesteps": 64}}
+pytestmark = pytest.mark.slow  # every test here trains (RLlib, Tune or `rllib-conv` subprocesses)
+
+TINY = {
+    "name": "tiny",
+    "population": "bandit-s1-hand",
+    "model": {"hidden": 8},
+    "ppo": {"rollout_per_partner": 16, "num_epochs": 1},
+    "run": {"timesteps": 64},
+}
 
 
 @pytest.fixture(scope="module")
@@ -63,13 +72,26 @@ def test_plot_redraws_the_figures_of_a_training_folder(tiny, capsys) -> None:
 
 
 def test_adapt_names_its_outputs_after_the_inputs_so_a_second_adaptation_does_not_clash(tiny, tmp_path, capsys) -> None:
-    common = ["--set", "steps=16", "--set", "every=16", "--set", "episodes=4", "--storage", str(tmp_path / "runs"), "--out", str(tmp_path / "curves")]
+    common = [
+        "--set",
+        "steps=16",
+        "--set",
+        "every=16",
+        "--set",
+        "episodes=4",
+        "--storage",
+        str(tmp_path / "runs"),
+        "--out",
+        str(tmp_path / "curves"),
+    ]
     assert main(["adapt", str(tiny["trial"]), "--partner", "hand-test-0", *common]) == 0
     first = capsys.readouterr().out
     assert main(["adapt", str(tiny["trial"]), "--partner", "hand-test-1", *common]) == 0  # another experiment, another name
     second = capsys.readouterr().out
     csvs = sorted((tmp_path / "curves").glob("*.csv"))
-    run = "-".join(["tiny", "_".join(tiny["tune_trial"].name.split("_")[1:3]), *tiny["trial"].relative_to(tiny["tune_trial"]).parts])
+    run = "-".join(
+        ["tiny", "_".join(tiny["tune_trial"].name.split("_")[1:3]), *tiny["trial"].relative_to(tiny["tune_trial"]).parts]
+    )
     assert len(csvs) == 2 and all(c.name.startswith(f"{run}-hand-test-") for c in csvs), csvs
     assert {last_line(first), last_line(second)} == {f"wrote {c}" for c in csvs}
     assert {pd.read_csv(c)["partner"].iloc[0] for c in csvs} == {"hand-test-0", "hand-test-1"}
@@ -97,7 +119,9 @@ def test_pair_an_ego_head_with_a_population_member_matches_the_exact_evaluation(
     module = load_module(last_checkpoint(trial))
     env = envs.make("bandit", symmetric=1)
     partner = partners.get("bandit-s1-hand").entries("train")[1].build()
-    assert row["exact_return"] == pytest.approx(bandit_exact_return(ego_head_partner(module, "ego@hand-train-1"), env, partner), abs=1e-6)
+    assert row["exact_return"] == pytest.approx(
+        bandit_exact_return(ego_head_partner(module, "ego@hand-train-1"), env, partner), abs=1e-6
+    )
     assert (row["seat_0"], row["seat_1"], row["episodes"]) == (seats[0], seats[1], 50)
 
 
@@ -105,7 +129,12 @@ def test_runs_given_as_relative_paths_load(tiny, tmp_path, monkeypatch, capsys) 
     """The README writes `runs/...`: RLlib's loader reads a relative path as a URI without a scheme unless it is resolved first."""
     monkeypatch.chdir(tiny["root"])
     trial = tiny["trial"].relative_to(tiny["root"])
-    assert main(["pair", f"{trial}:ego@hand-train-1", "bandit-s1-hand:hand-train-1", "--episodes", "5", "--out", str(tmp_path / "p")]) == 0
+    assert (
+        main(
+            ["pair", f"{trial}:ego@hand-train-1", "bandit-s1-hand:hand-train-1", "--episodes", "5", "--out", str(tmp_path / "p")]
+        )
+        == 0
+    )
     assert main(["marginals", "runs/tiny", "--out", str(tmp_path / "m")]) == 0
     assert last_line(capsys.readouterr().out) == f"wrote {tmp_path / 'm' / 'tiny.csv'}"
     assert len(list((tmp_path / "p").glob("*.csv"))) == 1
@@ -124,7 +153,16 @@ def test_pair_the_task_module_alone_in_the_second_seat(tiny) -> None:
 
 def test_commands_are_quiet_unless_verbose(tiny) -> None:
     """Loading a checkpoint makes RLlib warn about deprecations; only -v shows that."""
-    run = [sys.executable, "-m", "rllib_conv.cli", "pair", f"{tiny['trial']}:task", "bandit-s1-hand:hand-train-0", "--episodes", "2"]
+    run = [
+        sys.executable,
+        "-m",
+        "rllib_conv.cli",
+        "pair",
+        f"{tiny['trial']}:task",
+        "bandit-s1-hand:hand-train-0",
+        "--episodes",
+        "2",
+    ]
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
     quiet = subprocess.run([*run, "--out", str(tiny["root"] / "q")], capture_output=True, text=True, env=env, timeout=120)
     loud = subprocess.run([*run, "--out", str(tiny["root"] / "v"), "-v"], capture_output=True, text=True, env=env, timeout=120)
@@ -132,3 +170,17 @@ def test_commands_are_quiet_unless_verbose(tiny) -> None:
     assert quiet.stderr == ""
     assert "Deprecat" in loud.stderr
     assert last_line(quiet.stdout).startswith(f"wrote {tiny['root'] / 'q'}")
+
+
+def test_a_trained_egos_config_is_sealed_and_a_damaged_copy_is_refused(tiny, tmp_path, capsys) -> None:
+    """Issue 47: `config.yaml` cut to 100 bytes (lam 0.5 read as lam 0) made `marginals` write a CSV labelled with the wrong lam."""
+    trial = tiny["trial"]
+    assert (trial / "config.yaml.sha256").is_file()  # written with the config, so damage is caught
+    copy = tmp_path / "copy" / trial.name
+    shutil.copytree(trial, copy)
+    (copy / "config.yaml").write_text((trial / "config.yaml").read_text()[:100])
+    capsys.readouterr()
+    assert main(["marginals", str(copy), "--out", str(tmp_path / "m")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"{copy / 'config.yaml'}" in err[0] and "corrupt" in err[0], err
+    assert not (tmp_path / "m").exists()

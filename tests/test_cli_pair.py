@@ -70,7 +70,15 @@ def test_a_partner_that_does_not_fit_the_game_is_an_error_naming_it() -> None:
 
 
 def test_pair_on_the_command_line_writes_one_csv_named_after_the_seats(tmp_path, capsys) -> None:
-    argv = ["pair", "bandit-s2-hand:hand-train-1", "bandit_convention:{arms: [0, 5, 2, 3]}", "--episodes", "30", "--out", str(tmp_path)]
+    argv = [
+        "pair",
+        "bandit-s2-hand:hand-train-1",
+        "bandit_convention:{arms: [0, 5, 2, 3]}",
+        "--episodes",
+        "30",
+        "--out",
+        str(tmp_path),
+    ]
     assert main(argv) == 0
     path = tmp_path / "bandit-s2-hand-hand-train-1__bandit_convention-_arms_0,_5,_2,_3.csv"
     assert capsys.readouterr().out.strip().splitlines()[-1] == f"wrote {path}"

@@ -12,6 +12,7 @@ from rllib_conv.common import methods, resources
 from rllib_conv.common.arrays import to_numpy
 from rllib_conv.common.atomic_files import replaced_atomically, write_text_atomically
 from rllib_conv.common.run_folders import experiment_name, read_marker, split_experiment, write_marker
+from rllib_conv.common.sealed import digest_path, seal_file, verify_file
 from rllib_conv.pipelines.plans import plan_for, read_plan_file, shipped_plan
 from rllib_conv.training.experiment import ExperimentConfig
 
@@ -107,3 +108,18 @@ def test_a_file_is_replaced_whole_or_left_as_it_was(tmp_path) -> None:
     (tmp_path / ".curves.csv.tmp").write_text("left by a killed process")
     write_text_atomically(target, "a\n2\n")
     assert target.read_text() == "a\n2\n" and sorted(p.name for p in tmp_path.iterdir()) == ["curves.csv"]
+
+
+def test_a_sealed_file_is_read_only_unchanged_and_an_unsealed_one_as_it_is(tmp_path) -> None:
+    path = tmp_path / "config.yaml"
+    path.write_text("lam: 0.5\nseed: 0\n")
+    verify_file(path, "trial config")  # never sealed (a run from before sealing): read as it is
+    assert seal_file(path) == digest_path(path) == tmp_path / "config.yaml.sha256"
+    assert digest_path(path).read_text().endswith("  config.yaml\n")  # sha256sum's format: `sha256sum -c` checks it too
+    verify_file(path, "trial config")
+    path.write_text("lam: 0\nseed: 0\n")
+    with pytest.raises(ValueError, match=r"trial config '.*config.yaml' is corrupt"):
+        verify_file(path, "trial config")
+    path.unlink()
+    with pytest.raises(ValueError, match="is missing"):
+        verify_file(path, "trial config")

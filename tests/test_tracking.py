@@ -35,6 +35,7 @@ def tracked(ray_session, tmp_path_factory) -> Path:
     return storage / "tracked"
 
 
+@pytest.mark.slow
 def test_tensorboard_event_files_hold_the_regulariser_and_every_partners_return(tracked) -> None:
     events = list(tracked.glob("*/events.out.tfevents.*"))
     assert events, sorted(p.name for p in tracked.rglob("*"))[:40]
@@ -44,11 +45,13 @@ def test_tensorboard_event_files_hold_the_regulariser_and_every_partners_return(
         assert any(t.endswith(f"/return/{partner}") for t in tags), sorted(tags)[:40]
 
 
+@pytest.mark.slow
 def test_wandb_writes_an_offline_run_in_the_experiment_folder(tracked) -> None:
     runs = list((tracked / "wandb").glob("offline-run-*"))
     assert len(runs) == 1 and list(runs[0].glob("run-*.wandb")), sorted(p.name for p in (tracked / "wandb").rglob("*"))[:40]
 
 
+@pytest.mark.slow
 def test_mlflow_keeps_the_results_in_a_local_file_store(tracked) -> None:
     metrics = list((tracked / "mlruns").glob("*/*/metrics/marginal_reg"))
     assert len(metrics) == 1

@@ -14,13 +14,9 @@ from analysis.report.verdicts import ClaimCheck, Comparison
 from analysis.summaries import seed_summary
 from rllib_conv.common import methods
 
-# The paper's own method and settings: its claims are checked on this label alone, never on
-# the best of several variants (which would be a multiple-comparison advantage for ours).
-PAPER_METHOD = "modular-lam0.5"
-BASELINES = ("agg", "no_task_logits", "maml")
-
-# Methods of ours that the paper does not have: shown in the tables, left out of its claims.
-EXTENSIONS = ("modular-lam0.5-hl0.01", "modular-lam0.5-pick", "modular-lam0.5-hl0.01-pick", "beyond-posterior", "beyond-guarded")
+# The paper's own method (`methods.PAPER_METHOD`): its claims are checked on this label alone, never
+# on the best of several variants (which would be a multiple-comparison advantage for ours). The
+# variants the paper does not have (`methods.EXTENSIONS`) are shown in the tables, left out of its claims.
 
 PAPER_SEEDS = 3  # this project's default seed count for a full reproduction
 CONVERGED = 0.9  # share of the game's maximum score below which a trained ego counts as under-trained
@@ -83,7 +79,7 @@ class Context:
         if seeds and len(seeds) < PAPER_SEEDS and not self.quick(game):
             out.append(f"only {len(seeds)} seed(s)")
         row = self.train_summary[(self.train_summary["population"] == population) & (self.train_summary["label"] == label)]
-        top = loaders.MAX_SCORE.get(game or "", float("nan"))
+        top = loaders.max_score(self.plans.get(game or "", {"game": game}))
         # A single network (BaselineAgg, MAML) cannot follow conflicting conventions: a low training return is expected there.
         single = not row.empty and methods.method(row["method"].iloc[0]).single_head
         if not single and not row.empty and np.isfinite(top) and row["mean"].iloc[0] < CONVERGED * top:

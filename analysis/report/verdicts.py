@@ -1,8 +1,22 @@
-"""Comparisons of a paper number with ours, checks of a paper claim, and the rules that judge them.
+"""Comparisons of a paper number with ours, checks of a paper claim, and every rule that judges them.
 
 A paper number is compared with our seed-level 95% interval (`Comparison`); a claim "A beats
 B" with the paired difference of A and B over the seeds they share (`Difference`), and gets
-exactly one of three verdicts (`VERDICTS`).
+exactly one of three verdicts (`VERDICTS`). The rules, all here:
+
+- A paper number against ours (`Comparison.status`): inside our interval widened by the number's rounding, or outside.
+- "A beats B" (`Difference.verdict`): supported when the whole 95% interval of A − B is above 0,
+  contradicted when it is wholly below 0, not shown otherwise (one that holds 0, or one seed).
+- "A beats every one of B, C, ..." (`beats_every`, `all_hold`): supported only when every
+  difference is supported *and every named B is present*; contradicted when any difference is
+  contradicted (one loss refutes "beats every one", whatever is missing); otherwise not shown,
+  and a claim with a named B missing reads "not shown (missing: B)", never "supported" on the
+  ones present.
+- "A is no worse than B" (`no_worse`): a non-inferiority rule with a margin declared in the plan
+  (plan.json's `no_worse_margin`, in the game's score units; default `NO_WORSE_SHARE` of the game's
+  maximum score; `no_worse_margin()` reads it): supported when the whole interval of A − B is above −margin,
+  contradicted when it is wholly below −margin, not shown otherwise. An interval that holds 0
+  but reaches below −margin is not shown.
 """
 
 from __future__ import annotations
@@ -14,6 +28,7 @@ import numpy as np
 import pandas as pd
 
 from analysis import paper
+from analysis.loaders import max_score
 from analysis.paper import label_name, population_name
 from analysis.report.formatting import digits, fmt_ci, md_table, paper_tolerance
 from analysis.summaries import paired_difference
@@ -84,6 +99,22 @@ class Comparison:
 SUPPORTED, NOT_SHOWN, CONTRADICTED = "supported", "not shown", "contradicted"
 VERDICTS: tuple[str, ...] = (SUPPORTED, NOT_SHOWN, CONTRADICTED)
 
+# The "no worse" margin when a plan declares none: this share of the game's maximum score (bandit
+# 0.01, blocks 0.2, Hanabi 0.05), so that a loss too small to matter on the game's scale is tolerated
+# and nothing larger is.
+NO_WORSE_SHARE = 0.01
+
+
+def verdict_cell(verdict: str, missing: Sequence[str] = ()) -> str:
+    """The verdict as a table prints it: `not shown (missing: BaselineModular, First-Order MAML)` when named results are missing."""
+    return f"{verdict} (missing: {', '.join(missing)})" if missing else verdict
+
+
+def no_worse_margin(plan: dict[str, Any]) -> float:
+    """The margin of "no worse" claims for a game: plan.json's `no_worse_margin`, else `NO_WORSE_SHARE` of its maximum score (nan if unknown)."""
+    value = plan.get("no_worse_margin")
+    return float(value) if value is not None else NO_WORSE_SHARE * max_score(plan)
+
 
 @dataclass
 class ClaimCheck:
@@ -94,14 +125,27 @@ class ClaimCheck:
     verdict: str
     evidence: str
     game: str | None = None
+    missing: tuple[str, ...] = ()  # results the claim names that this data lacks (display names)
 
     def __post_init__(self) -> None:
         if self.verdict not in VERDICTS:
             raise ValueError(f"verdict {self.verdict!r} is not one of {VERDICTS}")
 
+    @classmethod
+    def of(
+        cls, claim: paper.Claim, scope: str, judgement: "Judgement", game: str | None = None, prefix: str = ""
+    ) -> "ClaimCheck":
+        """The check of `claim` on `scope` from a `Judgement` (its evidence after `prefix`, e.g. "AUC ")."""
+        return cls(claim, scope, judgement.verdict, prefix + judgement.evidence, game, judgement.missing)
+
+    @property
+    def cell(self) -> str:
+        """The verdict as printed: with what is missing, if anything is."""
+        return verdict_cell(self.verdict, self.missing)
+
     def row(self) -> list[str]:
         """Cells: scope, verdict, evidence."""
-        return [self.scope, self.verdict, self.evidence]
+        return [self.scope, self.cell, self.evidence]
 
 
 @dataclass(frozen=True)
@@ -131,12 +175,40 @@ class Difference:
         return f"{self.a} − {self.b} {self.mean:+.{places}f} [{self.lo:+.{places}f}, {self.hi:+.{places}f}] (n={self.n})"
 
 
-def all_hold(verdicts: Iterable[str]) -> str:
-    """The verdict on "A beats every B" from the verdicts on each "A beats B": contradicted if any is, supported if all are."""
+@dataclass(frozen=True)
+class Judgement:
+    """A verdict (one of `VERDICTS`) with its evidence, and the named results it lacked (display names; empty if none)."""
+
+    verdict: str
+    evidence: str
+    missing: tuple[str, ...] = ()
+
+    @property
+    def cell(self) -> str:
+        """The verdict as printed: `not shown (missing: ...)` where something named is missing."""
+        return verdict_cell(self.verdict, self.missing)
+
+
+def all_hold(verdicts: Iterable[str], missing: Sequence[str] = ()) -> str:
+    """The verdict on "A beats every B" from the verdicts on each B present: contradicted if any is, supported only if
+    all are and none of the named Bs is `missing`, not shown otherwise."""
     verdicts = list(verdicts)
     if CONTRADICTED in verdicts:
         return CONTRADICTED
-    return SUPPORTED if verdicts and all(v == SUPPORTED for v in verdicts) else NOT_SHOWN
+    return SUPPORTED if verdicts and not missing and all(v == SUPPORTED for v in verdicts) else NOT_SHOWN
+
+
+def no_worse(diff: Difference, margin: float) -> str:
+    """The verdict on "A is no worse than B" from the interval of A − B and the declared `margin` (>= 0, the game's score units).
+
+    Supported when the whole interval is above −`margin`, contradicted when wholly below it, not shown otherwise
+    (an interval that reaches below −`margin`, one seed, or no margin known).
+    """
+    if not (np.isfinite(diff.lo) and np.isfinite(diff.hi) and np.isfinite(margin)):
+        return NOT_SHOWN
+    if margin < 0:
+        raise ValueError(f"no_worse_margin must be >= 0, got {margin}")
+    return SUPPORTED if diff.lo > -margin else CONTRADICTED if diff.hi < -margin else NOT_SHOWN
 
 
 def advantage(df: pd.DataFrame, a: str, b: str, value: str, within: Sequence[str], lower_is_better: bool = False) -> Difference:
@@ -148,10 +220,42 @@ def advantage(df: pd.DataFrame, a: str, b: str, value: str, within: Sequence[str
     return Difference(label_name(first), label_name(second), *paired_difference(df, first, second, value, within))
 
 
-def beats_all(df: pd.DataFrame, a: str, others: Sequence[str], value: str, within: Sequence[str], places: int = 3, lower_is_better: bool = False) -> tuple[str, str]:
-    """The verdict on "`a` beats every one of `others`" and its evidence (each paired difference with its interval)."""
-    diffs = [advantage(df, a, b, value, within, lower_is_better) for b in others]
-    return all_hold(d.verdict for d in diffs), "; ".join(d.text(places) for d in diffs)
+def beats_every(
+    df: pd.DataFrame,
+    a: str,
+    named: Sequence[str],
+    value: str,
+    within: Sequence[str],
+    places: int = 3,
+    lower_is_better: bool = False,
+) -> Judgement:
+    """The verdict on "`a` beats every one of `named`" (labels), each paired difference its evidence.
+
+    The claim is over every label in `named`: one that `df` lacks (or `a` itself lacking) makes it
+    "not shown (missing: ...)" unless a present difference contradicts it (`all_hold`).
+    """
+    present = set(df["label"])
+    missing = tuple(label_name(x) for x in (a, *named) if x not in present)
+    diffs = [advantage(df, a, b, value, within, lower_is_better) for b in named if b in present] if a in present else []
+    evidence = "; ".join(d.text(places) for d in diffs) or "nothing to compare"
+    return Judgement(all_hold((d.verdict for d in diffs), missing), evidence, missing)
+
+
+def beats_all(
+    df: pd.DataFrame,
+    a: str,
+    others: Sequence[str],
+    value: str,
+    within: Sequence[str],
+    places: int = 3,
+    lower_is_better: bool = False,
+) -> tuple[str, str]:
+    """The verdict on "`a` beats every one of `others`" and its evidence (each paired difference with its interval).
+
+    As `beats_every`, the verdict one of `VERDICTS`; anything missing is named at the head of the evidence.
+    """
+    found = beats_every(df, a, others, value, within, places, lower_is_better)
+    return found.verdict, (f"missing: {', '.join(found.missing)}; " if found.missing else "") + found.evidence
 
 
 def variants_block(
@@ -167,19 +271,20 @@ def variants_block(
     """Markdown lines: each method of `frame` that the paper's claims are not about (not in `claimed`: other λ, low-dim z,
     the head penalty, head pick, ...) judged against the baselines `against` by the paired rule; empty if there is none.
 
-    Differences are printed with `places` decimals (default: the game's). These rows never enter a verdict on the
+    Differences are printed with `places` decimals (default: the game's); a baseline of `against` missing from a
+    population makes its rows "not shown (missing: ...)" (`beats_every`). These rows never enter a verdict on the
     paper: the paper's claims are checked on its own method alone.
     """
     claimed = set(claimed)
     rows = []
     for population in sorted(frame["population"].unique()):
         p = frame[frame["population"] == population]
-        base = [lab for lab in against if lab in set(p["label"])]
+        if not any(lab in set(p["label"]) for lab in against):
+            continue
         for label in sorted(set(p["label"]) - claimed):
-            if base:
-                decimals = places if places is not None else digits(p["game"].iloc[0])
-                verdict, evidence = beats_all(p, label, base, value, within, decimals, lower_is_better)
-                rows.append([population_name(population), label_name(label), verdict, evidence])
+            decimals = places if places is not None else digits(p["game"].iloc[0])
+            found = beats_every(p, label, against, value, within, decimals, lower_is_better)
+            rows.append([population_name(population), label_name(label), found.cell, found.evidence])
     if not rows:
         return []
     return [
@@ -201,5 +306,10 @@ def claims_block(topic: str, claims: Iterable[Any], checks: list[ClaimCheck], ru
     for claim in claims:
         mine = [c for c in checks if c.claim.key == claim.key]
         if mine:
-            lines += [f"*{claim.text}* ({claim.source})", "", md_table(["scope", "verdict", "evidence"], [c.row() for c in mine]), ""]
+            lines += [
+                f"*{claim.text}* ({claim.source})",
+                "",
+                md_table(["scope", "verdict", "evidence"], [c.row() for c in mine]),
+                "",
+            ]
     return lines

@@ -39,6 +39,7 @@ from typing import Any
 
 import numpy as np
 
+from rllib_conv.common.seeds import member_seed
 from rllib_conv.envs.best_response import BestResponse
 from rllib_conv.envs.convention_keys import KeyFn
 from rllib_conv.modules import ego_id
@@ -87,7 +88,9 @@ class ConventionPosterior:
     convention key (None: every move its own situation).
     """
 
-    def __init__(self, models: Sequence[Partner], key: KeyFn | None, recombined: float = 0.5, novel: float = 0.1, epsilon: float = 0.05) -> None:
+    def __init__(
+        self, models: Sequence[Partner], key: KeyFn | None, recombined: float = 0.5, novel: float = 0.1, epsilon: float = 0.05
+    ) -> None:
         if not models:
             raise ValueError("the convention posterior needs at least one known partner model")
         for name, value in (("recombined", recombined), ("novel", novel), ("epsilon", epsilon)):
@@ -242,7 +245,7 @@ class PosteriorPlayer(Partner):
     def seed(self, seed: int | None) -> None:
         self._rng = np.random.default_rng(self._seed if seed is None else seed)
         for i, player in enumerate([*self.known, self.adapting]):
-            player.seed(None if seed is None else seed + 1 + i)
+            player.seed(None if seed is None else member_seed(seed, i))
 
     def params(self) -> dict:
         return {"handed": self.handed, "seed": self._seed}

@@ -27,7 +27,7 @@ import numpy as np
 from pettingzoo.utils.env import AECEnv, ParallelEnv
 
 from rllib_conv.partners.base import Partner
-from rllib_conv.partners.play import episode_stream
+from rllib_conv.partners.episodes import episode_stream
 
 
 @dataclass(frozen=True)
@@ -55,7 +55,10 @@ def pick_head(
     """
     if not players:
         raise ValueError("pick_head needs at least one candidate head")
-    streams = {name: episode_stream(make_env(), {ego_agent: player, partner_agent: make_partner()}, seed) for name, player in players.items()}
+    streams = {
+        name: episode_stream(make_env(), {ego_agent: player, partner_agent: make_partner()}, seed)
+        for name, player in players.items()
+    }
     scores: dict[str, list[float]] = {name: [] for name in players}
     used, longest = 0, 1
     while not scores[next(iter(players))] or used + len(players) * longest <= budget:

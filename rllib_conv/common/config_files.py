@@ -1,16 +1,20 @@
 """Experiment files: YAML (or a dict) with Tune grids and `--set` overrides, validated against a typed schema.
 
 Any value may be a Tune grid, written `{grid_search: [a, b, ...]}` in YAML. Every
-combination is validated before anything runs; errors name the key path
-(`ppo.minibatch_size: Input should be greater than 0`). The schemas themselves live beside
-what they configure: `rllib_conv.training.experiment.ExperimentConfig` (an ego), and one
-per pipeline in `rllib_conv.pipelines` (adaptation, zero-shot, self-play, reproduce plans).
+combination is validated before anything runs. This module holds the one validator
+(`check`): every problem is one clause naming its key (`ppo.minibatch_size: Input should
+be greater than 0`), blamed on what set that key: a `--set KEY=VALUE`, a command-line
+option, or the file (or "arguments") otherwise. The schemas themselves live beside what
+they configure: `rllib_conv.training.experiment.ExperimentConfig` (an ego), and one per
+pipeline in `rllib_conv.pipelines` (adaptation, zero-shot, self-play, reproduce plans).
 """
 
 from __future__ import annotations
 
 import copy
 import itertools
+import re
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -18,6 +22,15 @@ import yaml
 from pydantic import BaseModel, ConfigDict, ValidationError
 
 GRID_KEY = "grid_search"
+SET = "--set"
+
+# Parts of a pydantic error location that name a type tried, not a key: a union's members
+# (`constrained-float`, `list[tuple[int, float]]`, `function-after[...]`). Users never wrote
+# them, so they are dropped from the key path a message names.
+_TYPE_TAG = re.compile(r"^(constrained-\w+|function-\w+\[.*\]|\w+\[.*\]|int|float|str|bool|none|list|dict|tuple|literal\[.*\])$")
+
+# Origins: key path -> the option that set it (`("pick_steps",): "--pick-steps"`).
+Origins = Mapping[tuple[str, ...], str]
 
 
 class Strict(BaseModel):
@@ -26,9 +39,29 @@ class Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", validate_assignment=True)
 
 
+def _key_path(loc: Sequence[Any]) -> tuple[str, ...]:
+    """The key path of a pydantic error location, without the union members it tried."""
+    return tuple(str(p) for p in loc if not (isinstance(p, str) and _TYPE_TAG.match(p)))
+
+
+def _message(error: Mapping[str, Any]) -> str:
+    """A pydantic problem in words: without pydantic's `Value error, ` prefix."""
+    return str(error["msg"]).removeprefix("Value error, ").removeprefix("Assertion failed, ")
+
+
+def _clauses(errors: Sequence[Mapping[str, Any]]) -> list[tuple[tuple[str, ...], str]]:
+    """(key path, message) per problem; a union's failed members at one key become one clause (`a; or b`)."""
+    merged: dict[tuple[str, ...], list[str]] = {}
+    for error in errors:
+        messages = merged.setdefault(_key_path(error["loc"]), [])
+        if _message(error) not in messages:
+            messages.append(_message(error))
+    return [(path, "; or ".join(messages)) for path, messages in merged.items()]
+
+
 def describe(exc: ValidationError) -> str:
     """One clause per problem: the dotted key path and what was wrong."""
-    return "; ".join(f"{'.'.join(str(p) for p in e['loc']) or '<root>'}: {e['msg']}" for e in exc.errors())
+    return "; ".join(f"{'.'.join(path) or '<root>'}: {msg}" for path, msg in _clauses(exc.errors()))
 
 
 def is_grid(node: Any) -> bool:
@@ -36,12 +69,20 @@ def is_grid(node: Any) -> bool:
     return isinstance(node, dict) and set(node) == {GRID_KEY}
 
 
+class GridError(ValueError):
+    """A `{grid_search: ...}` that is not a non-empty list; `path` is its key path."""
+
+    def __init__(self, path: tuple, message: str) -> None:
+        super().__init__(message)
+        self.path = tuple(str(p) for p in path)
+
+
 def _grid_paths(node: Any, path: tuple = ()) -> list[tuple[tuple, list]]:
     """Return (key path, values) of every `{grid_search: [...]}` in a nested dict."""
     if is_grid(node):
         values = node[GRID_KEY]
         if not isinstance(values, list) or not values:
-            raise ValueError(f"{'.'.join(map(str, path))}: grid_search needs a non-empty list, got {values!r}")
+            raise GridError(path, f"{'.'.join(map(str, path))}: grid_search needs a non-empty list, got {values!r}")
         return [(path, values)]
     if isinstance(node, dict):
         return [g for k, v in node.items() for g in _grid_paths(v, (*path, k))]
@@ -53,6 +94,15 @@ def set_path(node: dict, path: tuple, value: Any) -> None:
     for key in path[:-1]:
         node = node.setdefault(key, {})
     node[path[-1]] = value
+
+
+def has_path(node: Any, path: Sequence[str]) -> bool:
+    """Whether the nested mapping `node` has a value at `path`."""
+    for key in path:
+        if not isinstance(node, dict) or key not in node:
+            return False
+        node = node[key]
+    return True
 
 
 def expand_grid(raw: dict[str, Any]) -> list[dict[str, Any]]:
@@ -67,53 +117,144 @@ def expand_grid(raw: dict[str, Any]) -> list[dict[str, Any]]:
     return variants
 
 
-def validate(raw: dict[str, Any], source: str = "config", *, schema: type[BaseModel]) -> list:
-    """Validate every grid combination of `raw` against `schema`; return them. ValueError names the bad key."""
+def _blame(path: tuple[str, ...], msg: str, origins: Origins, default: str) -> tuple[str, str]:
+    """One problem as (what set its key, the clause): an option named alone says the problem alone."""
+    for key, origin in origins.items():
+        n = min(len(key), len(path))
+        if path and path[:n] == key[:n]:
+            return origin, msg if path == key and not origin.startswith(SET) else f"{'.'.join(path)}: {msg}"
+    if not path and origins:  # a check across keys: the file (or arguments) together with the options given
+        return f"{default} with {', '.join(dict.fromkeys(origins.values()))}", msg
+    return default, f"{'.'.join(path)}: {msg}" if path else msg
+
+
+def blamed(exc: ValidationError, origins: Origins, default: str) -> str:
+    """Every problem of `exc`, grouped by what it is blamed on: `--set a=1: a: ...; file.yaml: b: ...; c: ...`."""
+    grouped: dict[str, list[str]] = {}
+    for path, msg in _clauses(exc.errors()):
+        origin, clause = _blame(path, msg, origins, default)
+        grouped.setdefault(origin, []).append(clause)
+    return "; ".join(f"{origin}: {'; '.join(clauses)}" for origin, clauses in grouped.items())
+
+
+def check(raw: Any, schema: type[BaseModel], origins: Origins | None = None, default: str = "arguments") -> list[Any]:
+    """Every grid combination of `raw`, validated against `schema`: the one validator of every config.
+
+    `origins` maps key paths to the options that set them (`--pick-steps`, `--set lam=0.3`);
+    a problem at any other key is blamed on `default` (the YAML file, or "arguments"). An
+    option is blamed only where it set a value: one left unset takes no blame. ValueError:
+    one line naming the culprit.
+    """
     if not isinstance(raw, dict):
-        raise ValueError(f"{source}: expected a mapping of settings, got {type(raw).__name__}")
-    out = []
-    for variant in expand_grid(raw):
+        raise ValueError(f"{default}: expected a mapping of settings, got {type(raw).__name__}")
+    try:
+        combos = expand_grid(raw)
+    except GridError as exc:
+        blame = next((origin for key, origin in (origins or {}).items() if exc.path[: len(key)] == key), default)
+        raise ValueError(f"{blame}: {exc}") from None
+    variants = []
+    for variant in combos:
         try:
-            out.append(schema.model_validate(variant))
+            variants.append(schema.model_validate(variant))
         except ValidationError as exc:
-            raise ValueError(f"{source}: {describe(exc)}") from None
-    return out
+            given = {key: origin for key, origin in (origins or {}).items() if has_path(variant, key)}
+            raise ValueError(blamed(exc, given, default)) from None
+    return variants
+
+
+def shown(text: str, limit: int = 80) -> str:
+    """`text` as an error message repeats it: whole, or its start and its length when long."""
+    return text if len(text) <= limit else f"{text[: limit - 20]}... ({len(text)} characters)"
+
+
+def _first_words(exc: BaseException, limit: int = 200) -> str:
+    """An exception's message on one line, cut at `limit` characters."""
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def yaml_value(text: str, what: str) -> Any:
+    """`text` parsed as YAML; ValueError naming `what` when it is not valid YAML."""
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise ValueError(f"{what}: not valid YAML ({' '.join(str(exc).split())})") from None
+    except (ValueError, RecursionError) as exc:  # a number too long for Python's int(), nesting too deep to parse
+        raise ValueError(f"{what}: not a value this tool reads ({_first_words(exc)})") from None
 
 
 def parse_override(text: str) -> tuple[tuple[str, ...], Any]:
-    """Parse `--set key.path=value` (value in YAML syntax) into (path, value)."""
+    """Parse `--set key.path=value` (value in YAML syntax) into (path, value); ValueError naming the `--set`."""
     if "=" not in text:
-        raise ValueError(f"--set expects key=value, got {text!r}")
+        raise ValueError(f"{SET} expects key=value, got {shown(text)!r}")
     key, value = text.split("=", 1)
     if not key or any(not part for part in key.split(".")):
-        raise ValueError(f"--set expects a dotted key like ppo.lr, got {key!r}")
-    return tuple(key.split(".")), yaml.safe_load(value)
+        raise ValueError(f"{SET} expects a dotted key like ppo.lr, got {shown(key)!r}")
+    return tuple(key.split(".")), yaml_value(value, f"{SET} {shown(text)}")
 
 
-def from_dict(raw: dict[str, Any], overrides: list[str] = (), *, schema: type[BaseModel], source: str = "arguments") -> dict[str, Any]:
-    """Apply `--set` overrides to `raw` and validate it against `schema`; return the raw dict."""
-    raw = copy.deepcopy(raw)
-    for text in overrides:
+def with_sets(
+    raw: dict[str, Any], sets: Sequence[str], schema: type[BaseModel], origins: Origins | None = None, default: str = "arguments"
+) -> tuple[dict[str, Any], list[Any]]:
+    """`raw` with the `--set KEY=VALUE` overrides applied (a copy), and its validated grid combinations (`check`)."""
+    if not isinstance(raw, dict):
+        raise ValueError(f"{default}: expected a mapping of settings, got {type(raw).__name__}")
+    raw, origins = copy.deepcopy(raw), dict(origins or {})
+    for text in sets:
         key, value = parse_override(text)
-        set_path(raw, key, value)
-    validate(raw, source=source, schema=schema)
-    return raw
+        try:
+            set_path(raw, key, value)
+        except (AttributeError, TypeError):  # a key below a value that is not a mapping (lam.x=1)
+            raise ValueError(f"{SET} {shown(text)}: {'.'.join(key[:-1])} is not a section of settings") from None
+        origins[key] = f"{SET} {shown(text)}"
+    return raw, check(raw, schema, origins, default)
+
+
+def validate(raw: dict[str, Any], source: str = "config", *, schema: type[BaseModel]) -> list:
+    """Validate every grid combination of `raw` against `schema`; return them. ValueError names `source` and the bad key."""
+    return check(raw, schema, {}, source)
+
+
+def from_dict(
+    raw: dict[str, Any], overrides: Sequence[str] = (), *, schema: type[BaseModel], source: str = "arguments"
+) -> dict[str, Any]:
+    """Apply `--set` overrides to `raw` and validate it against `schema`; return the raw dict."""
+    return with_sets(raw, overrides, schema, {}, source)[0]
 
 
 def read_yaml(path: str | Path, what: str = "config file") -> Any:
-    """The parsed YAML of `path`; ValueError naming the file when it is missing or not valid YAML."""
+    """The parsed YAML of `path`; ValueError naming the file when it is missing, a folder, not text or not valid YAML."""
     path = Path(path)
+    if path.is_dir():
+        raise ValueError(f"{what} {str(path)!r} is a folder; expected a YAML file")
     if not path.is_file():
         raise ValueError(f"{what} {str(path)!r} does not exist")
     try:
-        return yaml.safe_load(path.read_text())
+        text = path.read_bytes().decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{what} {str(path)!r} is not UTF-8 text (byte {exc.start}); expected a YAML file") from None
+    except OSError as exc:
+        raise ValueError(f"{what} {str(path)!r} cannot be read ({exc.strerror})") from None
+    try:
+        return yaml.safe_load(text)
     except yaml.YAMLError as exc:
-        raise ValueError(f"{what} {str(path)!r} is not valid YAML: {exc}") from None
+        raise ValueError(f"{what} {str(path)!r} is not valid YAML: {' '.join(str(exc).split())}") from None
+    except (ValueError, RecursionError) as exc:  # a number too long for Python's int(), nesting too deep to parse
+        raise ValueError(f"{what} {str(path)!r} holds what this tool cannot read: {_first_words(exc)}") from None
 
 
-def load(path: str | Path, overrides: list[str] = (), *, schema: type[BaseModel]) -> dict[str, Any]:
+def load_checked(path: str | Path, overrides: Sequence[str] = (), *, schema: type[BaseModel]) -> tuple[dict[str, Any], list[Any]]:
+    """A config YAML with its `--set` overrides: the raw dict (grids kept, for Tune) and every combination validated.
+
+    Problems name the `--set` that caused them, else the file.
+    """
+    raw = read_yaml(path)
+    return with_sets({} if raw is None else raw, overrides, schema, {}, str(path))
+
+
+def load(path: str | Path, overrides: Sequence[str] = (), *, schema: type[BaseModel]) -> dict[str, Any]:
     """Read a config YAML, apply `--set` overrides, validate every grid combination against `schema`.
 
     Returns the raw dict (grids kept as `{grid_search: [...]}`) for Tune.
     """
-    return from_dict(read_yaml(path) or {}, overrides, schema=schema, source=str(path))
+    return load_checked(path, overrides, schema=schema)[0]

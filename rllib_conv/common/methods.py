@@ -18,7 +18,7 @@ TaskLogits = Literal["learned", "oracle", "unused"]
 Output = Literal["task", "network"]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Method:
     """What one ego-training method is made of and which pipelines and settings it supports."""
 
@@ -48,11 +48,66 @@ class Method:
 METHODS: dict[str, Method] = {
     m.name: m
     for m in (
-        Method("modular", "ours (task module + one head per partner)", "learned", False, True, True, False, True, "task", "task"),
-        Method("agg", "BaselineAgg", "learned", True, True, False, False, False, "network", "network"),
-        Method("no_task_logits", "BaselineModular", "unused", False, False, False, False, True, None, None),
-        Method("oracle", "oracle marginals", "oracle", False, False, False, False, True, None, "task"),
-        Method("maml", "First-Order MAML", "learned", True, False, False, True, False, "network", "network"),
+        Method(
+            name="modular",
+            title="ours (task module + one head per partner)",
+            task_logits="learned",
+            single_head=False,
+            regularised=True,
+            head_penalty=True,
+            meta_learned=False,
+            composable=True,
+            marginals="task",
+            prior="task",
+        ),
+        Method(
+            name="agg",
+            title="BaselineAgg",
+            task_logits="learned",
+            single_head=True,
+            regularised=True,
+            head_penalty=False,
+            meta_learned=False,
+            composable=False,
+            marginals="network",
+            prior="network",
+        ),
+        Method(
+            name="no_task_logits",
+            title="BaselineModular",
+            task_logits="unused",
+            single_head=False,
+            regularised=False,
+            head_penalty=False,
+            meta_learned=False,
+            composable=True,
+            marginals=None,
+            prior=None,
+        ),
+        Method(
+            name="oracle",
+            title="oracle marginals",
+            task_logits="oracle",
+            single_head=False,
+            regularised=False,
+            head_penalty=False,
+            meta_learned=False,
+            composable=True,
+            marginals=None,
+            prior="task",
+        ),
+        Method(
+            name="maml",
+            title="First-Order MAML",
+            task_logits="learned",
+            single_head=True,
+            regularised=False,
+            head_penalty=False,
+            meta_learned=True,
+            composable=False,
+            marginals="network",
+            prior="network",
+        ),
     )
 }
 # The names as a type, for configs: pydantic checks a `method:` value against them.
@@ -70,3 +125,39 @@ def method(name: str) -> Method:
 def names(**having: object) -> list[str]:
     """The method names, in registry order; keyword filters keep those whose fields equal them (`names(composable=True)`)."""
     return [m.name for m in METHODS.values() if all(getattr(m, key) == value for key, value in having.items())]
+
+
+# --- labels ---------------------------------------------------------------------------------------
+# A label names one trained or adapted variant in a reproduce plan (`tune_configs/plan_<game>.yaml`),
+# in the stage tables' file names (`<population>__<label>.csv`), the figures and the report. The
+# variants the shipped plans define are named here, once; a user's plan may add labels of its own
+# (the report then shows them under their label).
+
+
+def lam_label(lam: float, base: str = "modular") -> str:
+    """`modular-lam0.5`: ours trained with regulariser weight `lam` (`base` `lowz`: its low-dim z variant)."""
+    return f"{base}-lam{float(lam):g}"
+
+
+def row_label(method_name: str, lam: float) -> str:
+    """A table row's label when its file names none: `lam_label` for a regularised method with lam > 0, else the method."""
+    regularised = method_name in METHODS and METHODS[method_name].regularised
+    return lam_label(lam, method_name) if regularised and float(lam) > 0 else str(method_name)
+
+
+PAPER_LAM = 0.5  # the regulariser weight of the paper's method
+PAPER_METHOD = lam_label(PAPER_LAM)  # ours, λ=0.5: the paper's method, the reference of every claim
+LAM0 = lam_label(0.0)  # ours without the regulariser (fig:marginals)
+LAM03 = lam_label(0.3)
+LOW_Z = lam_label(PAPER_LAM, "lowz")  # ours with a low-dimensional z
+HEAD_PENALTY = f"{PAPER_METHOD}-hl0.01"  # ours with the head penalty head_l2 0.01 (not in the paper)
+PICKED = f"{PAPER_METHOD}-pick"  # ours, adapting from a picked head (not in the paper)
+HEAD_PENALTY_PICKED = f"{HEAD_PENALTY}-pick"
+BEYOND_POSTERIOR = "beyond-posterior"  # ours' egos adapting by the convention posterior (not in the paper)
+BEYOND_GUARDED = "beyond-guarded"  # the same, its fine-tuning guarded (not in the paper)
+SCRATCH = "scratch"  # adapting a fresh network (seeded as ours)
+BASELINES: tuple[str, ...] = ("agg", "no_task_logits", "maml")  # the paper's baselines, by method name
+# Variants beyond the paper's: the reports list them apart from the paper's claims.
+EXTENSIONS: tuple[str, ...] = (HEAD_PENALTY, PICKED, HEAD_PENALTY_PICKED, BEYOND_POSTERIOR, BEYOND_GUARDED)
+# Every label of the shipped plans, in the order figures and tables show them.
+LABELS: tuple[str, ...] = (LAM0, LAM03, PAPER_METHOD, *EXTENSIONS, LOW_Z, *BASELINES, "oracle", SCRATCH)

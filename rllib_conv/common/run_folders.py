@@ -14,7 +14,7 @@ through this module, so the layout is written down once:
             eval.json                  its final evaluation (written last)
 
     <reproduce out>/<game>/            one game of `rllib-conv reproduce`
-        plan.json                      the plan that ran (game, seeds, quick, train_steps)
+        plan.json                      the plan that ran (game, seeds, quick, train_steps, stages), the game's report facts
         <stage>.done                   a finished stage: "<seconds> s", then one covered item a line
         runs/<population>__<label>/    trained egos: <grid point>/seed=<s>/ as above, experiment.yaml
         runs/train-stage-<hash>/       the train stage's Tune run (its trials' checkpoints); adapt-stage-<hash>/,
@@ -28,10 +28,15 @@ through this module, so the layout is written down once:
 
 from __future__ import annotations
 
+import hashlib
+import json
 from pathlib import Path
 from typing import Any
 
 import yaml
+
+from rllib_conv.common.atomic_files import write_text_atomically
+from rllib_conv.common.sealed import verify_file
 
 # --- one Tune experiment and its trials -------------------------------------------------
 SPEC_FILE = "experiment.yaml"
@@ -47,13 +52,20 @@ POPULATION_FILE = "population.json"
 SELFPLAY_REPORT_FILE = "selfplay_report.csv"
 SELFPLAY_TRIAL_FILE = "selfplay.json"  # one self-play pair's outcome, in its trial folder
 
-# --- the Tune experiments of later stages -------------------------------------------------
-ADAPT_PREFIX = "adapt-"  # adaptation `name` runs as the Tune experiment `adapt-<name>`
-ZEROSHOT_PREFIX = "zeroshot-"
-SELFPLAY_PREFIX = "selfplay-"
-# A `reproduce` stage runs all its experiments as one Tune run `<stage>-stage-<hash>`; its trials
-# write their results into the experiments' own folders.
-TRAIN_STAGE_PREFIX = "train-stage-"
+# --- the stages and their Tune runs ---------------------------------------------------------
+# The stages of a reproduction, in order; all but `marginals` run as one Tune run each.
+SELFPLAY, TRAIN, ADAPT, ZEROSHOT, MARGINALS = "selfplay", "train", "adapt", "zeroshot", "marginals"
+STAGES: tuple[str, ...] = (SELFPLAY, TRAIN, ADAPT, ZEROSHOT, MARGINALS)
+# One self-play, adapt or zero-shot config runs as the Tune run `<stage>-<name>`; several (a
+# `reproduce` stage) as one Tune run `<stage>-stage-<hash of their spec>`, whose trials write
+# their results into each config's own outputs. The train stage's run is always the latter:
+# `<name>/` is the experiment's own folder, where its egos go.
+STAGE_RUN_INFIX = "stage-"
+ADAPT_PREFIX = f"{ADAPT}-"  # adaptation `name` runs as the Tune experiment `adapt-<name>`
+ZEROSHOT_PREFIX = f"{ZEROSHOT}-"
+SELFPLAY_PREFIX = f"{SELFPLAY}-"
+TRAIN_STAGE_PREFIX = f"{TRAIN}-{STAGE_RUN_INFIX}"
+# What marks a Tune run of a stage, never an experiment of trained egos.
 STAGE_PREFIXES: tuple[str, ...] = (ADAPT_PREFIX, ZEROSHOT_PREFIX, SELFPLAY_PREFIX, TRAIN_STAGE_PREFIX)
 
 # --- a reproduction's game folder ---------------------------------------------------------
@@ -66,7 +78,6 @@ CROSSPLAY_DIR = "crossplay"
 USER_STUDY_DIR = "user_study"
 SUPERSEDED_DIR = "superseded"
 MARGINALS_FILE = "marginals.csv"
-STAGES: tuple[str, ...] = ("selfplay", "train", "adapt", "zeroshot", "marginals")
 MARKER_SUFFIX = ".done"
 # What marks a folder as one game of a reproduction.
 GAME_MARKERS: tuple[str, ...] = (PLAN_FILE, RUNS_DIR, ADAPTATION_DIR, ZEROSHOT_DIR, MARGINALS_FILE, POPULATIONS_DIR)
@@ -120,13 +131,40 @@ def trial_folders(path: str | Path, missing_ok: bool = False) -> list[Path]:
 
 
 def read_trial_config(trial: str | Path) -> dict[str, Any]:
-    """A trial's resolved config (its `config.yaml`) as a plain dict."""
+    """A trial's resolved config (its `config.yaml`) as a plain dict; ValueError naming it when it differs from what was saved."""
+    verify_file(Path(trial) / CONFIG_FILE, "trial config")
     return yaml.safe_load((Path(trial) / CONFIG_FILE).read_text()) or {}
 
 
 def checkpoints(trial: str | Path) -> list[Path]:
     """The trial's checkpoint folders, oldest first."""
     return sorted(Path(trial).glob(f"{CHECKPOINT_PREFIX}*"), key=lambda p: int(p.name.rsplit("_", 1)[1]))
+
+
+def spec_digest(spec: Any) -> str:
+    """12 hex digits that only the same spec (a JSON-able dict, keys in any order) gets again."""
+    return hashlib.sha1(json.dumps(spec, sort_keys=True, default=str).encode()).hexdigest()[:12]
+
+
+def stage_run_prefix(stage: str) -> str:
+    """How the Tune runs of several configs of stage `stage` begin: `<stage>-stage-`."""
+    return f"{stage}-{STAGE_RUN_INFIX}"
+
+
+def stage_run_name(stage: str, names: list[str], spec: Any) -> str:
+    """The Tune run of stage `stage` running the configs `names` (all of them described by `spec`).
+
+    One config runs as `<stage>-<name>`, several as `<stage>-stage-<spec_digest(spec)>`, and
+    so does every train stage (see `STAGE_RUN_INFIX`): the same configs continue the same run.
+    """
+    if len(names) == 1 and stage != TRAIN:
+        return config_run_name(stage, names[0])
+    return stage_run_prefix(stage) + spec_digest(spec)
+
+
+def config_run_name(stage: str, name: str) -> str:
+    """The Tune run of the one config `name` of stage `stage` (self-play, adapt, zero-shot): `<stage>-<name>`."""
+    return f"{stage}-{name}"
 
 
 def marker_path(game_dir: str | Path, stage: str) -> Path:
@@ -146,19 +184,25 @@ def read_marker(marker: Path) -> tuple[float, list[str]]:
 
 
 def write_marker(marker: Path, seconds: float, items: list[str]) -> None:
-    """Write a stage marker: `<seconds> s` on the first line, then one covered item per line."""
-    marker.write_text("\n".join([f"{seconds:.1f} s", *items]) + "\n")
+    """Write a stage marker: `<seconds> s` on the first line, then one covered item per line.
+
+    Whole or not at all (`atomic_files`): a run killed while writing it leaves the marker it
+    had, never one that covers only some of its items.
+    """
+    write_text_atomically(marker, "\n".join([f"{seconds:.1f} s", *items]) + "\n")
 
 
 def expected_stages(game: str, quick: bool = False) -> tuple[str, ...]:
-    """The stages `rllib-conv reproduce` runs for `game`, in order.
+    """The stages `rllib-conv reproduce` ran for `game`, in order, in a folder whose plan.json predates its `stages`.
 
-    Zero-shot needs a new task with the same partners: bandit, and blocks except in the
-    quick plan; Hanabi has neither zero-shot nor marginals (no oracle).
+    Reproductions now record their stages (the game's record decides: zero-shot where it has
+    a new task and the plan zero-shot populations, marginals where it has an oracle); older
+    folders hold only the paper's three games, whose fixed plans were: zero-shot on the bandit,
+    and on blocks except in the quick plan; no zero-shot nor marginals on Hanabi (no oracle).
     """
-    stages = ["selfplay", "train", "adapt"]
+    stages = [SELFPLAY, TRAIN, ADAPT]
     if game == "bandit" or (game == "blocks" and not quick):
-        stages.append("zeroshot")
+        stages.append(ZEROSHOT)
     if game in ("bandit", "blocks"):
-        stages.append("marginals")
+        stages.append(MARGINALS)
     return tuple(stages)

@@ -4,6 +4,12 @@
 folder interrupted while being written or copied (no manifest, a file missing or short)
 and one damaged later (a file changed) fail `verify` with a `ValueError` naming the file,
 so nothing ever loads a half-written or corrupt checkpoint or partner as if it were fine.
+
+A single file is sealed the same way by a digest beside it (`seal_file`: `config.yaml`
+gets `config.yaml.sha256`, in `sha256sum` format, so `sha256sum -c` checks it too): a
+trained ego's config is read only if it is what was saved (`verify_file`). A file without
+a digest (written before files were sealed) is read as it is: refusing it would make every
+older run unreadable, and such a file was never promised to be checked.
 """
 
 from __future__ import annotations
@@ -15,6 +21,7 @@ from pathlib import Path
 from rllib_conv.common.atomic_files import write_text_atomically
 
 MANIFEST = "manifest.json"
+DIGEST_SUFFIX = ".sha256"
 
 
 def _digest(path: Path) -> str:
@@ -59,3 +66,27 @@ def verify(folder: str | Path) -> None:
 def is_sealed(folder: str | Path) -> bool:
     """Whether `folder` carries a manifest (folders written before sealing existed do not)."""
     return (Path(folder) / MANIFEST).is_file()
+
+
+def digest_path(path: str | Path) -> Path:
+    """Where the digest of the sealed file `path` lies: beside it, `<name>.sha256`."""
+    path = Path(path)
+    return path.with_name(path.name + DIGEST_SUFFIX)
+
+
+def seal_file(path: str | Path) -> Path:
+    """Write the SHA-256 of the file `path` beside it (`sha256sum` format), atomically; return the digest's path."""
+    path = Path(path)
+    return write_text_atomically(digest_path(path), f"{_digest(path)}  {path.name}\n")
+
+
+def verify_file(path: str | Path, what: str = "file") -> None:
+    """Raise ValueError naming `path` unless it is unchanged since `seal_file`; a file never sealed passes (see above)."""
+    path, digest = Path(path), digest_path(path)
+    if not digest.is_file():
+        return
+    want = digest.read_text(errors="replace").split(maxsplit=1)[0] if digest.stat().st_size else ""
+    if not path.is_file():
+        raise ValueError(f"{what} {str(path)!r} is missing (its digest {digest.name} is there)")
+    if _digest(path) != want:
+        raise ValueError(f"{what} {str(path)!r} is corrupt: it differs from what was saved (its SHA-256 in {digest.name})")

@@ -1,26 +1,30 @@
-"""The paper's games as PettingZoo envs, behind a name registry.
+"""The paper's games as PettingZoo envs, each one folder plus one record, behind a name registry.
 
-`make(name, **config)` builds a registered env, `names()` lists them, and
-`register(name, factory)` adds a user's own PettingZoo env (AEC or parallel) under a
-name that configs and the CLI then accept (`register_convention_key` says which of its
-situations carry separate conventions, `register_best_response` how an ego plans against
-a partner model). `to_rllib(name)` exposes any registered
-env to RLlib/Tune as a `MultiAgentEnv`.
+A game is a folder (`bandit/`, `blocks/`, `hanabi/`: its env, oracle, convention key,
+best response and `record.py`) and one `GameRecord` registered here. `game(name)` is a
+game's record (what every layer asks instead of branching on a name), `make(name, **config)`
+builds its env, `names()` lists them, `register_game(record)` adds one and `register(name,
+factory)` adds a bare PettingZoo env (AEC or parallel). A game named by import path
+(`"package.module:RECORD"`) is found in every process. `to_rllib(name)` exposes any
+registered env to RLlib/Tune as a `MultiAgentEnv`.
 """
 
 from rllib_conv.envs.bandit import CollaborativeBanditEnv
-from rllib_conv.envs.best_response import best_response, register_best_response
+from rllib_conv.envs.bandit.record import BANDIT
+from rllib_conv.envs.best_response import best_response
 from rllib_conv.envs.blocks import BlockPlacingEnv
-from rllib_conv.envs.blocks_best_response import BlocksBestResponse
-from rllib_conv.envs.convention_keys import convention_key, register_convention_key
+from rllib_conv.envs.blocks.best_response import BlocksBestResponse
+from rllib_conv.envs.blocks.record import BLOCKS
+from rllib_conv.envs.convention_keys import convention_key
+from rllib_conv.envs.game import GameRecord
 from rllib_conv.envs.hanabi import HanabiEnv
-from rllib_conv.envs.registry import make, names, register
+from rllib_conv.envs.hanabi.record import HANABI
+from rllib_conv.envs.registry import game, games, make, names, register, register_game
 
-register("bandit", CollaborativeBanditEnv)
-register("blocks", BlockPlacingEnv)
-register("hanabi", HanabiEnv)
+for _record in (BANDIT, BLOCKS, HANABI):
+    register_game(_record, builtin=True)
 
 __all__ = [
-    "make", "names", "register", "convention_key", "register_convention_key", "best_response", "register_best_response",
+    "GameRecord", "game", "games", "make", "names", "register", "register_game", "convention_key", "best_response",
     "CollaborativeBanditEnv", "BlockPlacingEnv", "BlocksBestResponse", "HanabiEnv",
 ]

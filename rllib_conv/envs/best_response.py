@@ -1,19 +1,21 @@
 """Best responses: games whose ego can plan against a model of its partner.
 
-A game registers `factory(env_config, ego_agent) -> BestResponse | None` when the ego's
+A game declares `factory(env_config, ego_agent) -> BestResponse | None` in its record
+(`GameRecord.best_response`; blocks' is `envs/blocks/best_response.py`) when the ego's
 best response to a given partner policy can be computed exactly (a small game whose rules
 are at hand). A `BestResponse` lists every observation the partner can act on
 (`situations`) and, given the partner's action probabilities in each, returns a `Plan`:
 the ego's best action per observation. The convention-posterior adapter plans against
-its posterior prediction of the new partner's moves (`training.convention_posterior`).
+its posterior prediction of the new partner's moves (`adaptation.convention_posterior`).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from typing import Any, Protocol
 
 import numpy as np
+
+from rllib_conv.envs.registry import game
 
 
 class Plan(Protocol):
@@ -33,16 +35,7 @@ class BestResponse(Protocol):
         """The ego's best response to a partner that plays `predict[s]` ([S, A]) in situation s."""
 
 
-Factory = Callable[[dict[str, Any], str], "BestResponse | None"]
-_FACTORIES: dict[str, Factory] = {}
-
-
-def register_best_response(env_name: str, factory: Factory) -> None:
-    """Register `factory(env_config, ego_agent)` for the game `env_name`; it returns None for seats it cannot plan for."""
-    _FACTORIES[env_name] = factory
-
-
 def best_response(env_name: str, env_config: dict[str, Any], ego_agent: str) -> BestResponse | None:
     """The best-response planner of `env_name` for an ego playing `ego_agent`, or None if the game has none."""
-    factory = _FACTORIES.get(env_name)
+    factory = game(env_name).best_response
     return factory(env_config, ego_agent) if factory else None

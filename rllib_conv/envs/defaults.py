@@ -1,32 +1,50 @@
-"""The paper's settings per game: network size, PPO batches, training budgets, adaptation and zero-shot protocols.
+"""The shapes of a game's paper settings: training, adaptation and zero-shot protocols.
 
-From the paper's Tables 2-4 and its released code (`shared/notes/original-code.md`).
-Configs leave these unset and take them from here for their game; a user's own game gets
-`FALLBACK_DEFAULTS` (and, for adaptation and zero-shot, settings derived from its rollout).
+Each game's values sit in its record (`envs/<game>/record.py`, from the paper's Tables 2-4
+and its released code; `docs/differences.md` lists where we differ). Configs leave these
+unset and take them from their game's record; a game without them gets `FALLBACK_DEFAULTS`
+(and, for adaptation and zero-shot, settings derived from its rollout): ask
+`envs.game(name).training_defaults()`, `.adapt_defaults(...)`, `.zeroshot_defaults(...)`.
 """
 
 from __future__ import annotations
 
-# Layer size, rollout steps per partner, minibatch, epochs, training env steps.
-GAME_DEFAULTS: dict[str, dict[str, int]] = {
-    "bandit": {"hidden": 30, "rollout_per_partner": 64, "minibatch_size": 16, "num_epochs": 20, "timesteps": 10_000},
-    "blocks": {"hidden": 80, "rollout_per_partner": 640, "minibatch_size": 160, "num_epochs": 5, "timesteps": 1_000_000},
-    "hanabi": {"hidden": 500, "rollout_per_partner": 640, "minibatch_size": 160, "num_epochs": 5, "timesteps": 500_000},
-}
-FALLBACK_DEFAULTS = {"hidden": 64, "rollout_per_partner": 256, "minibatch_size": 64, "num_epochs": 10, "timesteps": 100_000}
+from dataclasses import asdict, dataclass
 
-# The paper's adaptation protocol: evaluate every `every` env steps up to `steps`; one PPO
-# update of `minibatch_size` x `num_epochs` per `every` steps (Table 3 and the notes).
-ADAPT_DEFAULTS: dict[str, dict[str, int]] = {
-    "bandit": {"every": 16, "steps": 240, "minibatch_size": 16, "num_epochs": 50},
-    "blocks": {"every": 640, "steps": 25_600, "minibatch_size": 160, "num_epochs": 5},
-    "hanabi": {"every": 640, "steps": 25_600, "minibatch_size": 160, "num_epochs": 5},
-}
 
-# Zero-shot step 1 runs until the test heads have converged on the old task: on blocks
-# ~19.5 of 20 by 300k steps (at 100k, BaselineModular's heads, which learn the rules too,
-# reach ~11.5). Step 2 re-trains the task module on the new task.
-ZEROSHOT_DEFAULTS: dict[str, dict[str, int]] = {
-    "bandit": {"head_steps": 2_560, "task_steps": 10_000},
-    "blocks": {"head_steps": 300_000, "task_steps": 400_000},
-}
+@dataclass(frozen=True)
+class TrainingDefaults:
+    """Layer size, rollout steps per partner, minibatch, epochs, training env steps."""
+
+    hidden: int
+    rollout_per_partner: int
+    minibatch_size: int
+    num_epochs: int
+    timesteps: int
+
+    def as_dict(self) -> dict[str, int]:
+        """The settings by name."""
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class AdaptDefaults:
+    """The adaptation protocol: evaluate every `every` env steps up to `steps`; one PPO update
+    of `minibatch_size` x `num_epochs` per `every` steps (None: the trained ego's)."""
+
+    every: int
+    steps: int
+    minibatch_size: int | None = None
+    num_epochs: int | None = None
+
+
+@dataclass(frozen=True)
+class ZeroShotDefaults:
+    """Zero-shot budgets: step 1 trains the test heads on the old task until they have
+    converged; step 2 re-trains the task module on the new task."""
+
+    head_steps: int
+    task_steps: int
+
+
+FALLBACK_DEFAULTS = TrainingDefaults(hidden=64, rollout_per_partner=256, minibatch_size=64, num_epochs=10, timesteps=100_000)

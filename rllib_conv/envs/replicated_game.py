@@ -7,7 +7,7 @@ sees the same episodes whether it runs alone or beside others:
 
 - RLlib seeds sub-environment `i` of an env runner with `seed + i` on its first reset (the
   runner's seed is the algorithm's, plus its worker index); the game copy of replica `r` is
-  seeded with `mix(replica_seeds[r], that offset)`.
+  seeded with `game_seed(replica_seeds[r], that offset)` (`rllib_conv.common.seeds`).
 - One `step` moves every copy that is still playing (one mover each in turn-based games), so
   every replica advances one env step per RLlib env step; an episode ends when every copy
   has ended. Copies of a game whose length varies (Hanabi) wait for the longest one, so a
@@ -29,8 +29,9 @@ from typing import Any
 import gymnasium as gym
 from ray.rllib.env.multi_agent_env import MultiAgentEnv
 
+from rllib_conv.common.seeds import game_seed
 from rllib_conv.envs import registry
-from rllib_conv.envs.rllib_adapter import BUILTIN_GAMES, PettingZooMultiAgentEnv
+from rllib_conv.envs.rllib_adapter import PettingZooMultiAgentEnv
 
 SEPARATOR = "#"
 
@@ -44,11 +45,6 @@ def split_agent(agent_id: str) -> tuple[str, int]:
     """`player_0#2` -> (`player_0`, 2)."""
     agent, _, replica = agent_id.rpartition(SEPARATOR)
     return agent, int(replica)
-
-
-def mix(seed: int, offset: int) -> int:
-    """The game seed of a replica with seed `seed` in the sub-environment `offset` (independent of other replicas)."""
-    return (int(seed) * 1_000_003 + int(offset)) % (2**31 - 1)
 
 
 class ReplicatedGame(MultiAgentEnv):
@@ -78,7 +74,7 @@ class ReplicatedGame(MultiAgentEnv):
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
         obs = {}
         for r, env in enumerate(self.copies):
-            o, _ = env.reset(seed=None if seed is None else mix(self.replica_seeds[r], seed - self.base_seed), options=options)
+            o, _ = env.reset(seed=None if seed is None else game_seed(self.replica_seeds[r], seed - self.base_seed), options=options)
             ids = self._ids[r]
             obs.update({ids[a]: v for a, v in o.items()})
         self._done = [False] * len(self.copies)
@@ -137,8 +133,8 @@ class ReplicatedGame(MultiAgentEnv):
 
 
 def replicated_env_config(name: str, game_config: dict, replica_seeds: list[int], base_seed: int) -> dict:
-    """The RLlib `env_config` of `ReplicatedGame`: built-ins by name, user games with their factory."""
+    """The RLlib `env_config` of `ReplicatedGame`: games every process finds by name, others with their factory."""
     env_config = {"game": name, "game_config": dict(game_config), "replica_seeds": list(replica_seeds), "base_seed": int(base_seed)}
-    if name not in BUILTIN_GAMES:
+    if not registry.found_by_name(name):
         env_config["factory"] = registry.factory(name)
     return env_config

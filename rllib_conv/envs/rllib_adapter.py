@@ -157,9 +157,6 @@ class PettingZooMultiAgentEnv(MultiAgentEnv):
         self.env.close()
 
 
-BUILTIN_GAMES = ("bandit", "blocks", "hanabi")
-
-
 class RLlibGame(PettingZooMultiAgentEnv):
     """A registered game built from an RLlib `env_config`: `{"game": name, "game_config": {...}}`.
 
@@ -177,9 +174,9 @@ class RLlibGame(PettingZooMultiAgentEnv):
 
 
 def game_env_config(name: str, game_config: dict) -> dict:
-    """The RLlib `env_config` for `RLlibGame`: built-ins by name, user games with their factory."""
+    """The RLlib `env_config` for `RLlibGame`: games every process finds by name, others with their factory."""
     env_config = {"game": name, "game_config": dict(game_config)}
-    if name not in BUILTIN_GAMES:
+    if not registry.found_by_name(name):
         env_config["factory"] = registry.factory(name)
     return env_config
 

@@ -1,7 +1,15 @@
-"""Learners: PPO with the marginal regulariser and real freezing.
+"""Learners: PPO with the paper's marginal regulariser and real freezing.
 
-- `marginal_learner`: `MarginalPPOLearner`, the regulariser `marginal_distance` and the head penalty `head_size`.
+The paper's loss, readable on its own:
+
+- `regulariser`: `marginal_distance`, the marginal regulariser D.
+- `ppo_loss`: PPO's clipped surrogate loss, RLlib's arithmetic.
+- `marginal_learner`: `MarginalPPOLearner`, PPO + lam * D (+ the head penalty) and freezing.
+- `head_penalty`: `head_size`, the head penalty H (`head_l2`, beyond the paper).
 - `settings`: `LearnerSettings`, what the learner reads from `learner_config_dict` (light: no torch, no Ray).
+- `minibatches`: RLlib's minibatch order, as row indices.
 - `drop_bootstrap_rows`: the learner connector piece that drops PPO's bootstrap rows after GAE.
-- `rollout`: `Rollout`, sampled rows laid out as the learner connector lays out episodes, and their train batch.
+
+`packed/` holds the speed machinery (the fused minibatch loop and Adam step, the batched
+sampler's `Rollout`), which changes no number.
 """

@@ -8,13 +8,12 @@ the same sequence as index tensors instead of copied sub-batches, so the learner
 slice its tensors once per minibatch.
 
 Permutations come from `permute(module_id, n)`: RLlib's global NumPy RNG by default, or
-one generator per module (`module_permuters`), so that modules of independent runs
+one generator per module (`ModulePermuters`, seeded by `rllib_conv.common.seeds.shuffle_seed`), so that modules of independent runs
 packed into one learner shuffle as each would alone.
 """
 
 from __future__ import annotations
 
-import zlib
 from collections.abc import Callable, Iterator
 
 import numpy as np
@@ -26,11 +25,6 @@ Permute = Callable[[str, int], np.ndarray]
 def global_permute(module_id: str, n: int) -> np.ndarray:
     """A permutation from NumPy's global RNG, as `SampleBatch.shuffle` draws it."""
     return np.random.permutation(n)
-
-
-def module_seed(seed: int, module_id: str) -> int:
-    """A seed for `module_id`'s own generator, the same in every process (no string hashing)."""
-    return (int(seed) * 1_000_003 + zlib.crc32(module_id.encode())) % (2**32)
 
 
 class ModulePermuters:

@@ -19,8 +19,6 @@ class LearnerSettings:
     adam_eps: float = 1e-5
     z_lr_scale: float = 1.0
     head_l2: float = 0.0
-    # The learner's own minibatch loop (`MarginalPPOLearner.update`); False runs RLlib's.
-    fused_update: bool = True
     # Module ID -> seed of the generator shuffling its minibatches (packed replicas shuffle
     # as each would alone); modules without one shuffle with NumPy's global RNG, as RLlib does.
     shuffle_seeds: dict[str, int] = field(default_factory=dict)

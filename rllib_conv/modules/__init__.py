@@ -1,4 +1,9 @@
-"""RLlib modules: the shared task module, per-partner ego heads, fixed partners, and their wiring."""
+"""RLlib modules: the shared task module, per-partner ego heads, fixed partners, and their wiring.
+
+The paper's model is `task_module` (g^t) and `partner_head` (g^p_i: logits and values add
+to the task module's); `multi` holds one ego as plain modules. `packed/` holds the packed
+replicas that train (K egos' weights stacked and run batched), equal to K plain egos.
+"""
 
 from rllib_conv.modules.fixed_partner import FixedPartnerModule
 from rllib_conv.modules.mapping import PartnerMapping

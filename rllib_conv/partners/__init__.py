@@ -1,12 +1,17 @@
 """Fixed partners: the `Partner` interface, scripted partners per game, and populations.
 
-Importing this package registers every built-in partner kind and population.
+Importing this package registers every built-in partner kind and population: the trained
+kind here, and each game's scripted kinds and populations from the modules its record
+names (`GameRecord.partners`), so a new game adds none here.
 """
 
-from rllib_conv.partners import bandit, blocks, builtin, hanabi, trained  # noqa: F401  (registers kinds and populations)
+import importlib
+
+from rllib_conv import envs
+from rllib_conv.partners import trained  # noqa: F401  (registers the trained-policy kind)
 from rllib_conv.partners.base import Partner
+from rllib_conv.partners.episodes import play_episodes
 from rllib_conv.partners.kinds import kinds, partner_from_spec, register_kind
-from rllib_conv.partners.play import play_episodes
 from rllib_conv.partners.population import (
     PartnerEntry,
     Population,
@@ -15,6 +20,10 @@ from rllib_conv.partners.population import (
     names,
     register_builtin,
 )
+
+for _game in envs.games():
+    for _module in _game.partners:
+        importlib.import_module(_module)
 
 __all__ = [
     "Partner",

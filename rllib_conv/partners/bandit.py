@@ -1,17 +1,20 @@
-"""Bandit partners: a fixed arm per context (a convention), hand-designed or drawn at random."""
+"""Bandit partners: a fixed arm per context (a convention), hand-designed or drawn at random, and their built-in populations."""
 
 from __future__ import annotations
 
+from functools import partial
 from typing import Any
 
 import numpy as np
 
-from rllib_conv.envs.bandit import PAPER_ARMS, PAPER_CONTEXTS, good_arms
+from rllib_conv.envs.bandit import PAPER_ARMS, PAPER_CONTEXTS, good_arms, paper_prizes
 from rllib_conv.envs.spaces import check_choice
 from rllib_conv.partners.base import Partner
 from rllib_conv.partners.kinds import register_kind
+from rllib_conv.partners.population import Population, from_partners, register_builtin, task_suffix
 
 HAND_DESIGNED_PER_SPLIT = 4
+RANDOM_PER_SPLIT = 10
 
 
 @register_kind
@@ -97,3 +100,35 @@ def random_convention_partners(prizes: np.ndarray, n: int, seed: int, prefix: st
 
 
 assert PAPER_ARMS == 2 * PAPER_CONTEXTS  # convention_arms relies on the high arm being c + 4
+
+
+def bandit_hand(symmetric: int, new_task: bool) -> Population:
+    """The paper's 4 + 4 hand-designed bandit partners; the new-task variant keeps their conventions."""
+    return from_partners(
+        f"bandit-s{symmetric}-hand{task_suffix(new_task)}",
+        "bandit",
+        {"symmetric": symmetric, "new_task": new_task},
+        hand_designed_partners(symmetric, "train", new_task),
+        hand_designed_partners(symmetric, "test", new_task),
+        description="hand-designed: a fixed good arm per context, balanced over the good arms",
+    )
+
+
+def bandit_random(symmetric: int, n: int = RANDOM_PER_SPLIT, seed: int = 0) -> Population:
+    """`n` + `n` partners each pulling a uniformly drawn good arm per context (seeded)."""
+    prizes = paper_prizes(symmetric)
+    return from_partners(
+        f"bandit-s{symmetric}-random",
+        "bandit",
+        {"symmetric": symmetric},
+        random_convention_partners(prizes, n, seed, prefix="rand-train"),
+        random_convention_partners(prizes, n, seed + 1, prefix="rand-test"),
+        description=f"random conventions: a uniformly drawn good arm per context (seeds {seed}, {seed + 1})",
+    )
+
+
+for _m in range(PAPER_CONTEXTS + 1):
+    for _new in (False, True):
+        register_builtin(f"bandit-s{_m}-hand{task_suffix(_new)}", partial(bandit_hand, _m, _new))
+for _m in range(PAPER_CONTEXTS + 1):
+    register_builtin(f"bandit-s{_m}-random", partial(bandit_random, _m))

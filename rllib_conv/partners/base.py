@@ -51,7 +51,7 @@ class Partner(ABC):
         return out
 
     def start_episode(self) -> None:
-        """A new episode begins (`partners.play.episode_stream` calls it); partners that adapt during play reset their per-episode state."""
+        """A new episode begins (`partners.episodes.episode_stream` calls it); partners that adapt during play reset their per-episode state."""
 
     def observe_other(self, observation: np.ndarray, action_mask: np.ndarray, action: int) -> None:
         """The other seat chose `action` at its `observation` (with its `action_mask`); partners that adapt during play learn from it."""

@@ -4,11 +4,13 @@ A permutation partner with `perm` places blue on `perm[c]` if P1's first move pu
 on cell `c`, and passes otherwise. The paper's 9 hand-designed partners are the 9
 derangements of the 4 cells (no cell maps to itself), 3 for training and 6 for test.
 `BlocksLeader` is the matching P1: it signals the blue goal through the permutation,
-then moves red to its own goal; paired with its permutation partner it scores 20.
+then moves red to its own goal; paired with its permutation partner it scores 20. The
+built-in populations `blocks-perm[-newtask]` are declared here.
 """
 
 from __future__ import annotations
 
+from functools import partial
 from itertools import permutations
 from typing import Any
 
@@ -26,6 +28,7 @@ from rllib_conv.envs.blocks import (
 )
 from rllib_conv.partners.base import Partner
 from rllib_conv.partners.kinds import register_kind
+from rllib_conv.partners.population import Population, from_partners, register_builtin, task_suffix
 
 TRAIN_PERMUTATIONS: list[tuple[int, ...]] = [(1, 3, 0, 2), (2, 0, 3, 1), (3, 2, 1, 0)]
 
@@ -104,3 +107,19 @@ class BlocksLeader(Partner):
 
     def params(self) -> dict[str, Any]:
         return {"perm": list(self.perm), "new_task": self.new_task}
+
+
+def blocks_permutations(new_task: bool) -> Population:
+    """The 9 derangement partners (P2): 3 train, 6 test, as in the paper."""
+    return from_partners(
+        f"blocks-perm{task_suffix(new_task)}",
+        "blocks",
+        {"new_task": new_task},
+        [PermutationPartner(f"perm-{''.join(map(str, p))}", list(p)) for p in TRAIN_PERMUTATIONS],
+        [PermutationPartner(f"perm-{''.join(map(str, p))}", list(p)) for p in TEST_PERMUTATIONS],
+        description="P2 places blue at perm[red's cell after move 1], then passes",
+    )
+
+
+for _new in (False, True):
+    register_builtin(f"blocks-perm{task_suffix(_new)}", partial(blocks_permutations, _new))

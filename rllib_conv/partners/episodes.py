@@ -8,6 +8,7 @@ from collections.abc import Iterator
 import numpy as np
 from pettingzoo.utils.env import AECEnv, ParallelEnv
 
+from rllib_conv.common.seeds import seat_seed
 from rllib_conv.envs.spaces import MASK_KEY, OBS_KEY
 from rllib_conv.partners.base import Partner
 
@@ -30,15 +31,15 @@ def episode_stream(env: AECEnv | ParallelEnv, seats: dict[str, Partner], seed: i
     The score of an episode is the total reward of the first seat (the games are fully
     cooperative, so every seat gets the same total). Env steps count moves as RLlib's
     adapter does: one per agent move in AEC games, one per joint step in parallel ones.
-    Episodes are seeded `seed, seed+1, ...` and each partner is seeded once with `seed`,
-    so play is reproducible. Every seat hears `start_episode` before each episode and
+    Episodes are seeded `seed, seed+1, ...` and the partner in seat i is seeded once
+    (`common.seeds.seat_seed`), so play is reproducible. Every seat hears `start_episode` before each episode and
     `observe_other` after each move of another seat (what a partner adapting during play needs).
     """
     missing = set(env.possible_agents) - set(seats)
     if missing:
         raise ValueError(f"seats must give a partner for every agent; missing {sorted(missing)}")
     for i, partner in enumerate(seats.values()):
-        partner.seed(seed + 7919 * i)
+        partner.seed(seat_seed(seed, i))
     first = env.possible_agents[0]
     for ep in itertools.count():
         score, steps = 0.0, 0

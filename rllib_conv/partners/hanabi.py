@@ -3,7 +3,8 @@
 Both act from `(observation vector, action mask)` alone, like any other
 `Partner`; the rule partner reads the observation back through
 `rllib_conv.envs.hanabi.decode_card_knowledge`, so it needs to know the game
-config the vector was encoded with (the paper's small Hanabi by default).
+config the vector was encoded with (the paper's small Hanabi by default). The built-in
+population `hanabi-scripted` is declared here.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from rllib_conv.envs.hanabi import (
 )
 from rllib_conv.partners.base import Partner
 from rllib_conv.partners.kinds import register_kind
+from rllib_conv.partners.population import Population, from_partners, register_builtin
 
 
 def _legal_ids(action_mask: np.ndarray, who: str) -> np.ndarray:
@@ -196,3 +198,18 @@ class HanabiRulePartner(Partner):
                     if new and mask[move] and (best is None or (r, offset) < best[:2]):
                         best = (r, offset, move)
         return None if best is None else best[2]
+
+
+def hanabi_scripted() -> Population:
+    """A rule-following Hanabi partner (train) and a uniformly random legal one (test)."""
+    return from_partners(
+        "hanabi-scripted",
+        "hanabi",
+        {},
+        [HanabiRulePartner("rule")],
+        [RandomLegalPartner("random")],
+        description="scripted Hanabi players (self-play partners come from `rllib-conv partners train`)",
+    )
+
+
+register_builtin("hanabi-scripted", hanabi_scripted)

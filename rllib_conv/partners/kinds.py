@@ -1,7 +1,13 @@
-"""Registry of `Partner` kinds, so population manifests can name and rebuild partners."""
+"""Registry of `Partner` kinds, so population manifests can name and rebuild partners.
+
+A kind outside the package (a test's or a user's game) is named by import path,
+`kind = "package.module:Class"`: every process, Ray workers included, imports it on first
+use, as `envs.registry` does for games.
+"""
 
 from __future__ import annotations
 
+import importlib
 from typing import Any
 
 from rllib_conv.partners.base import Partner
@@ -24,10 +30,30 @@ def kinds() -> list[str]:
     return sorted(_KINDS)
 
 
+def kind_class(kind: str) -> type[Partner]:
+    """The `Partner` class registered as `kind`, importing `"package.module:Class"` kinds; ValueError if there is none."""
+    if kind not in _KINDS and ":" in kind:
+        module, _, attr = kind.partition(":")
+        try:
+            found = getattr(importlib.import_module(module), attr)
+        except (ImportError, AttributeError, ValueError) as exc:
+            raise ValueError(f"partner kind {kind!r}: cannot import {attr!r} from module {module!r} ({exc})") from None
+        if not (isinstance(found, type) and issubclass(found, Partner) and found.kind == kind):
+            raise ValueError(f"partner kind {kind!r}: {attr!r} is not a Partner class whose `kind` is {kind!r}")
+        register_kind(found)
+    try:
+        return _KINDS[kind]
+    except KeyError:
+        raise ValueError(f"unknown partner kind {kind!r}; known kinds: {', '.join(kinds())} (or give 'package.module:Class')") from None
+
+
 def gives_action_probs(kind: str) -> bool:
     """Whether partners of `kind` say what their actions are drawn from (`Partner.action_probs`); False for unknown kinds."""
-    cls = _KINDS.get(kind)
-    return cls is not None and (cls.deterministic or cls.action_probs is not Partner.action_probs)
+    try:
+        cls = kind_class(kind)
+    except ValueError:
+        return False
+    return cls.deterministic or cls.action_probs is not Partner.action_probs
 
 
 def partner_from_spec(spec: dict[str, Any]) -> Partner:
@@ -35,8 +61,5 @@ def partner_from_spec(spec: dict[str, Any]) -> Partner:
     for key in ("name", "kind"):
         if key not in spec:
             raise ValueError(f"partner spec is missing {key!r}: {spec!r}")
-    try:
-        cls = _KINDS[spec["kind"]]
-    except KeyError:
-        raise ValueError(f"unknown partner kind {spec['kind']!r}; known kinds: {', '.join(kinds())}") from None
+    cls = kind_class(spec["kind"])
     return cls(name=spec["name"], **spec.get("params", {}))

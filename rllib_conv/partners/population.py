@@ -133,6 +133,11 @@ class Population(BaseModel):
 _BUILTINS: dict[str, Callable[[], Population]] = {}
 
 
+def task_suffix(new_task: bool) -> str:
+    """What a built-in population's name ends with on its game's new task (zero-shot finds it by that name)."""
+    return "-newtask" if new_task else ""
+
+
 def register_builtin(name: str, builder: Callable[[], Population]) -> None:
     """Make `builder()` addressable as the population `name`."""
     _BUILTINS[name] = builder

@@ -2,17 +2,23 @@
 
 The paper's "partner policies derived from the data collected in our user study": each
 participant's last try in each context is the convention the pair settled on. The table
-and its format are in `rllib_conv.common.user_study_table`.
+and its format are in `rllib_conv.common.user_study_table`. The built-in populations
+`bandit-user-study[-newtask]` are declared here.
 """
 
 from __future__ import annotations
 
+from functools import partial
 from typing import Iterable
 
 import pandas as pd
 
 from rllib_conv.common.user_study_table import CONTEXTS, MAX_TRIES, TASKS, load_user_study
 from rllib_conv.partners.bandit import BanditConventionPartner
+from rllib_conv.partners.population import Population, from_partners, register_builtin, task_suffix
+
+# Pairs 1-12 train, 13-23 test: both participants of a pair stay on one side of the split.
+USER_STUDY_TRAIN_PAIRS = range(1, 13)
 
 
 def user_study_partners(
@@ -43,3 +49,24 @@ def user_study_partners(
             arms = [int(rows.at[c, f"arm_{participant}"]) for c in CONTEXTS]
             partners.append(BanditConventionPartner(name=f"us-p{int(pair):02d}-{participant}", arms=arms))
     return partners
+
+
+def bandit_user_study(new_task: bool) -> Population:
+    """One partner per study participant (try-5 choices); Train task, or Test with `new_task`."""
+    df = load_user_study()
+    task = "test" if new_task else "train"
+    test_pairs = sorted(set(df["pair"]) - set(USER_STUDY_TRAIN_PAIRS))
+    train = user_study_partners(task, df, pairs=USER_STUDY_TRAIN_PAIRS)
+    test = user_study_partners(task, df, pairs=test_pairs)
+    return from_partners(
+        f"bandit-user-study{task_suffix(new_task)}",
+        "bandit",
+        {"task": "user_study", "new_task": new_task},
+        train,
+        test,
+        description="user study participants' try-5 conventions; pairs 1-12 train, 13-23 test",
+    )
+
+
+for _new in (False, True):
+    register_builtin(f"bandit-user-study{task_suffix(_new)}", partial(bandit_user_study, _new))

@@ -30,9 +30,8 @@ z_dim, seed, partner, steps, mean_return, stderr, exact_return (one-step games o
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Hashable, Sequence
 from dataclasses import dataclass
-from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -40,44 +39,41 @@ import pandas as pd
 from ray import tune
 
 from rllib_conv import envs, partners
-from rllib_conv.common.atomic_files import replaced_atomically
-from rllib_conv.common.config_files import validate
-from rllib_conv.common.methods import method
-from rllib_conv.common.run_folders import ADAPT_PREFIX, RL_MODULE_DIR, trial_folders
-from rllib_conv.envs.defaults import ADAPT_DEFAULTS
-from rllib_conv.modules import partner_id
-from rllib_conv.modules.multi import AGG_HEAD_ID, TASK_ID, replica_id
-from rllib_conv.modules.stacked_multi import STACK_ID
-from rllib_conv.partners.population import with_absolute_paths
-from rllib_conv.pipelines.adapt_config import AdaptConfig
-from rllib_conv.training.algorithm import Replica, build_algorithm, packing_key
-from rllib_conv.training.callbacks import STEPS_DONE, STEPS_TOTAL, StageProgress
-from rllib_conv.training.checkpoints import last_checkpoint
-from rllib_conv.training.convention_posterior import (
+from rllib_conv.adaptation.convention_posterior import (
     ConventionPosterior,
     KnownConventions,
     PosteriorPlayer,
     known_conventions,
     require_action_probs,
 )
+from rllib_conv.adaptation.fine_tune_guard import FineTuneGuard
+from rllib_conv.adaptation.head_pick import HeadPick, pick_head
+from rllib_conv.adaptation.registry import FRESH, PICK, POSTERIOR, adapter, check_trained_ego
+from rllib_conv.common.atomic_files import replaced_atomically
+from rllib_conv.common.config_files import validate
+from rllib_conv.common.methods import method
+from rllib_conv.common.run_folders import ADAPT, RL_MODULE_DIR, trial_folders
+from rllib_conv.common.seeds import pick_seed
+from rllib_conv.modules import partner_id
+from rllib_conv.modules.multi import AGG_HEAD_ID, TASK_ID, replica_id
+from rllib_conv.modules.packed.stacked_multi import STACK_ID
+from rllib_conv.pipelines.adapt_config import AdaptConfig
+from rllib_conv.training.algorithm import Replica, build_algorithm, packing_key
+from rllib_conv.training.callbacks import STEPS_DONE, STEPS_TOTAL
+from rllib_conv.training.checkpoints import last_checkpoint
 from rllib_conv.training.ego_setup import EgoSetup, setup_for
 from rllib_conv.training.evaluate import check_episodes, ego_head_partner, load_module, player_return
 from rllib_conv.training.experiment import ExperimentConfig, trial_config
-from rllib_conv.training.fine_tune_guard import FineTuneGuard
-from rllib_conv.training.head_pick import HeadPick, pick_head
-from rllib_conv.training.packs import cluster_cpus, packs, spread_over_cores, write_tables
 from rllib_conv.training.replica_export import copy_replica, replica_module
 from rllib_conv.training.replica_steps import replica_env_steps
 from rllib_conv.training.settings import MappingSettings
+from rllib_conv.training.stage import Stage, Table, run_packed, validated
 from rllib_conv.training.trainable import AlgorithmTrainable
-from rllib_conv.training.tuning import fit, job_param_space, job_units, spec_name
 from rllib_conv.training.weights import learner_module, push_learner_weights
 
 CURVES_FILE = "curves.csv"  # a finished pack's curves, in its trial folder
-STAGE_PREFIX = f"{ADAPT_PREFIX}stage-"  # the Tune run of several adapt configs at once
-FRESH = "fresh"  # the new partner's own (fresh) head, as a `head_pick` candidate
-PICK_SEED = 1_000_000  # head-picking episodes are seeded apart from the evaluation episodes
 CURVE_COLUMNS = ["run", "method", "lam", "z_dim", "seed", "partner", "steps", "mean_return", "stderr", "exact_return"]
+CURVES_TABLE = Table(CURVES_FILE, CURVE_COLUMNS, order=["run", "partner", "steps"], what="adaptation")
 
 
 @dataclass
@@ -103,18 +99,15 @@ def adapt_curve(cfg: AdaptConfig, run: str, partner: str) -> Curve:
     game = trained.env
     if pop.env != game:
         raise ValueError(f"population {pop.name!r} is for {pop.env!r}, but the ego in {str(trial)!r} was trained on {game!r}")
-    if cfg.head_init != "fresh" and method(trained.method).single_head:
-        raise ValueError(
-            f"head_init {cfg.head_init!r} needs one head per training partner, but the ego in {str(trial)!r} was trained with "
-            f"method {trained.method!r} (one shared head)"
-        )
-    if cfg.head_init == "posterior":
+    check_trained_ego(cfg.head_init, method(trained.method), repr(str(trial)))
+    if adapter(cfg.head_init).uses["adapt"].training_policies:
         require_action_probs(partners.get(trained.population), "head_init 'posterior'")
     check_episodes(cfg.episodes, game, trained.env_config)
     every, _ = protocol(cfg, trained)
-    defaults = ADAPT_DEFAULTS.get(game, {})
+    defaults = envs.game(game).adapt_defaults(trained.ppo.rollout_per_partner)
+    batches = {k: getattr(defaults, k) for k in ("minibatch_size", "num_epochs") if getattr(defaults, k) is not None}
     ppo = trained.ppo.model_dump()
-    ppo.update({"rollout_per_partner": every, **{k: defaults[k] for k in ("minibatch_size", "num_epochs") if k in defaults}, **cfg.ppo})
+    ppo.update({"rollout_per_partner": every, **batches, **cfg.ppo})
     scratch = cfg.method == "scratch"
     exp = trained.model_copy(
         update={
@@ -144,8 +137,8 @@ def adapt_curve(cfg: AdaptConfig, run: str, partner: str) -> Curve:
 
 def protocol(cfg: AdaptConfig, trained: ExperimentConfig) -> tuple[int, int]:
     """(every, steps): env steps between evaluations (one update each) and the curve's length, defaults per game."""
-    defaults = ADAPT_DEFAULTS.get(trained.env, {"every": trained.ppo.rollout_per_partner, "steps": 20 * trained.ppo.rollout_per_partner})
-    return cfg.every or defaults["every"], cfg.steps or defaults["steps"]
+    defaults = envs.game(trained.env).adapt_defaults(trained.ppo.rollout_per_partner)
+    return cfg.every or defaults.every, cfg.steps or defaults.steps
 
 
 class AdaptTrainable(AlgorithmTrainable):
@@ -173,7 +166,7 @@ class AdaptTrainable(AlgorithmTrainable):
         self.finished = [False] * k
         self.rows: list[dict[str, Any]] = []
         self._trained: dict[str, Any] = {}  # run -> its trained ego, loaded once for all its curves
-        if self.cfg.head_init == "posterior":
+        if self.cfg.head_init == POSTERIOR:
             self._start_posteriors()
         if self.cfg.guard:
             self._start_guards()
@@ -255,7 +248,7 @@ class AdaptTrainable(AlgorithmTrainable):
         if self.cfg.guard and not self.guards[r].trusted:
             plain = self.prior[r]  # not yet measured better than the ego before any update
         adapting = ego_head_partner(plain, head_id)  # `player_return` seeds every player it plays
-        if self.cfg.head_init != "posterior":
+        if self.cfg.head_init != POSTERIOR:
             return adapting
         return PosteriorPlayer(head_id, self.posteriors[r], self.known[r].heads, adapting, self.handed[r], planner=self.planners[r])
 
@@ -266,7 +259,7 @@ class AdaptTrainable(AlgorithmTrainable):
             plain = copy_replica(module, r, rep, self.plain[r])
             entry, new_head = curve.setup.train[0], curve.setup.head_for(curve.setup.train[0].name)
             trained = self._trained_ego(curve.run)
-            seed = self.cfg.seed + PICK_SEED
+            seed = pick_seed(self.cfg.seed)  # head-picking episodes, apart from the evaluation episodes
             players = {FRESH: ego_head_partner(plain, new_head, seed)}
             players |= {mid: ego_head_partner(trained, mid, seed) for mid in trained.head_ids()}
             game, env_config = curve.setup.population.env, curve.setup.env_config
@@ -305,7 +298,7 @@ class AdaptTrainable(AlgorithmTrainable):
         done = all(self.finished)
         if done:
             self._write_curves()
-        elif self.cfg.head_init == "pick" and self.picked[0] is None:
+        elif self.cfg.head_init == PICK and self.picked[0] is None:
             with self.timings.measure("evaluate"):
                 self.picked = [p.chosen for p in self._pick_heads()]
             self.steps = list(self.offset)
@@ -313,7 +306,7 @@ class AdaptTrainable(AlgorithmTrainable):
             with self.timings.measure("iterate"):
                 result = self.algo.train()
             with self.timings.measure("evaluate"):
-                if self.cfg.head_init == "posterior":
+                if self.cfg.head_init == POSTERIOR:
                     self._update_posteriors()
                 if self.cfg.guard:
                     self._update_guards()
@@ -351,9 +344,9 @@ def adaptation_curves(cfg: AdaptConfig) -> list[dict[str, str]]:
     return pairs
 
 
-def pack_curves(cfg: AdaptConfig, pairs: list[dict[str, str]], cpus: int, stage_curves: int) -> list[list[dict[str, str]]]:
-    """The curves of `cfg` in packs (`packs`): curves of packable egos together, at most `cfg.max_pack` a pack."""
-    return packs(pairs, lambda pair: packing_key(adapt_curve(cfg, pair["run"], pair["partner"]).setup), cpus, cfg.max_pack, stage_curves)
+def curve_packing_key(cfg: AdaptConfig, pair: dict[str, str]) -> Hashable:
+    """What curves must share to pack into one trial (`algorithm.packing_key`): the curve of `pair` under `cfg`'s."""
+    return packing_key(adapt_curve(cfg, pair["run"], pair["partner"]).setup)
 
 
 def run_adaptations(
@@ -370,23 +363,13 @@ def run_adaptations(
     (their specs' hash: the same configs continue the same run). `label` names the stage in
     its progress line (a `StageProgress`); without it every result prints a line.
     """
-    cfgs = [validate(raw, schema=AdaptConfig)[0] for raw in raws]
-    names = [c.name for c in cfgs]
-    if len(set(names)) < len(names):
-        raise ValueError(f"adapt configs must have different names; got {names}")
+    cfgs = validated(raws, lambda raw: validate(raw, schema=AdaptConfig)[0], "adapt")
     curves = [adaptation_curves(cfg) for cfg in cfgs]
     for cfg, pairs in zip(cfgs, curves):
         for pair in pairs:
             adapt_curve(cfg, pair["run"], pair["partner"])  # wrong game, missing weights: fail early
-    cpus, total = cluster_cpus(address), sum(map(len, curves))
-    # Manifest paths made absolute: Tune runs every trial in its own folder.
-    jobs = [{"index": i, "config": with_absolute_paths(raw, "population"), "curves": pack} for i, (raw, cfg, pairs) in enumerate(zip(raws, cfgs, curves)) for pack in pack_curves(cfg, pairs, cpus, total)]
-    jobs = spread_over_cores(jobs, "curves", cpus)
-    spec: Any = raws[0] if len(raws) == 1 else {"experiments": names, "configs": raws}
-    name = f"{ADAPT_PREFIX}{cfgs[0].name}" if len(raws) == 1 else spec_name(STAGE_PREFIX, spec)
-    progress = StageProgress(label, units=partial(job_units, key="curves")) if label else "lines"
-    results = fit(AdaptTrainable, spec, job_param_space(jobs), name, storage, address, tune.CheckpointConfig(checkpoint_at_end=False), progress, loggers=loggers)
-    return write_tables(results, cfgs, CURVES_FILE, CURVE_COLUMNS, ["run", "partner", "steps"], Path(out), "adaptation")
+    stage = Stage(ADAPT, AdaptTrainable, tune.CheckpointConfig(checkpoint_at_end=False), units="curves", table=CURVES_TABLE, manifest_key="population")
+    return run_packed(stage, raws, cfgs, curves, lambda i, pair: curve_packing_key(cfgs[i], pair), out, storage, address, label, loggers)
 
 
 def run_adaptation(

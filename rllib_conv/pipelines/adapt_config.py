@@ -4,17 +4,27 @@ from __future__ import annotations
 
 from typing import Any, Literal
 
-from pydantic import Field, NonNegativeInt, PositiveFloat, PositiveInt, confloat, model_validator
+from pydantic import (
+    Field,
+    NonNegativeInt,
+    PositiveFloat,
+    PositiveInt,
+    ValidationError,
+    confloat,
+    field_validator,
+    model_validator,
+)
 
-from rllib_conv.common.config_files import Strict
-from rllib_conv.training.fine_tune_guard import DEFAULT_Z
-from rllib_conv.training.settings import FolderName
+from rllib_conv.adaptation.fine_tune_guard import DEFAULT_Z
+from rllib_conv.common.adapters import FRESH, GUARD, PICK, StartName, adapter
+from rllib_conv.common.config_files import Strict, describe
+from rllib_conv.training.settings import FolderName, PPOSettings
 
 Fraction = confloat(gt=0.0, lt=1.0)
 
 
 class PosteriorSettings(Strict):
-    """The convention posterior's priors and smoothing (`head_init: posterior`; `rllib_conv.training.convention_posterior`).
+    """The convention posterior's priors and smoothing (`head_init: posterior`; `rllib_conv.adaptation.convention_posterior`).
 
     `recombined`: prior of "the partner recombines known conventions situation by
     situation" against following one whole; `novel`: prior, per situation, of a convention
@@ -38,47 +48,85 @@ class AdaptConfig(Strict):
     is evaluated before every update (`every` env steps) up to `steps`, `episodes` episodes
     each (and exactly on the bandit, where `episodes: 0` plays none and scores by the exact
     expectation alone: `mean_return` and `stderr` are then empty). Unset values take the
-    paper's per-game adaptation settings (`rllib_conv.envs.defaults.ADAPT_DEFAULTS`); `ppo`
+    paper's per-game adaptation settings (the game record's `adaptation`, `rllib_conv.envs.game.GameRecord`); `ppo`
     overrides the run's PPO settings.
     `head_init: pick` (not in the paper; egos with one head per partner) first spends
     `pick_steps` env steps (default `every`) trying the fresh head and every training
-    partner's head on the new partner, and adapts from the best (`rllib_conv.training.head_pick`).
+    partner's head on the new partner, and adapts from the best (`rllib_conv.adaptation.head_pick`).
     `head_init: posterior` (not in the paper; egos with one head per partner) adapts the
     fresh head as the paper does, and plays by a posterior over which training partner's
     convention the new partner follows, from the partner's moves (`posterior` settings;
-    `rllib_conv.training.convention_posterior`). `guard: true` (not in the paper; with
+    `rllib_conv.adaptation.convention_posterior`). `guard: true` (not in the paper; with
     `head_init` fresh or posterior) evaluates the ego as it was before any update until the
     adapting one is measured better on its own training rollouts, by `guard_z` standard
-    errors (`rllib_conv.training.fine_tune_guard`).
+    errors (`rllib_conv.adaptation.fine_tune_guard`).
     """
 
-    name: FolderName = "adapt"
-    runs: list[str]
-    population: str | None = None
-    split: Literal["train", "test"] = "test"
-    partners: list[str] | None = None
-    method: Literal["scratch"] | None = None
-    train_task: bool = True
-    head_init: Literal["fresh", "pick", "posterior"] = "fresh"
-    pick_steps: PositiveInt | None = None
-    posterior: PosteriorSettings = Field(default_factory=PosteriorSettings)
-    guard: bool = False
-    guard_z: PositiveFloat = DEFAULT_Z
-    every: PositiveInt | None = None
-    steps: PositiveInt | None = None
-    episodes: NonNegativeInt = 200
-    ppo: dict[str, Any] = Field(default_factory=dict)
-    seed: int = 0
+    name: FolderName = Field("adapt", description="name of the output CSV and Tune experiment")
+    runs: list[str] = Field(description="trained-ego trial folders or experiment folders")
+    population: str | None = Field(None, description="population of the new partners (default: the one each run trained on)")
+    split: Literal["train", "test"] = Field("test", description="which partners of the population to adapt to")
+    partners: list[str] | None = Field(
+        None, description="adapt to these partners only (names: rllib-conv partners show POP); default: the split"
+    )
+    method: Literal["scratch"] | None = Field(None, description="scratch: adapt a fresh network instead (learning from scratch)")
+    train_task: bool = Field(True, description="train the task module while adapting (false keeps it frozen)")
+    head_init: StartName = Field(
+        FRESH,
+        description="pick: first try the fresh head and every training partner's head on the new partner, adapt from the best; "
+        "posterior: adapt the fresh head and play by a posterior over which training partner's convention the new partner follows "
+        "(both not in the paper)",
+    )
+    pick_steps: PositiveInt | None = Field(None, description="env steps spent picking the head (default: one update's worth)")
+    posterior: PosteriorSettings = Field(
+        default_factory=PosteriorSettings,
+        description="--head-init posterior's priors, e.g. --set posterior.recombined=0.5 posterior.novel=0.1 posterior.epsilon=0.05 posterior.handover=0.95",
+    )
+    guard: bool = Field(
+        False,
+        description="evaluate the ego as it was before any update until the adapting one is measured better on its own rollouts "
+        "(with --head-init fresh or posterior; not in the paper)",
+    )
+    guard_z: PositiveFloat = Field(
+        DEFAULT_Z, description="--guard's margin: standard errors by which the adapting ego's mean return must beat the prior's"
+    )
+    every: PositiveInt | None = Field(
+        None, description="env steps between evaluations, one PPO update each (default: the game's adaptation protocol)"
+    )
+    steps: PositiveInt | None = Field(None, description="env steps of adaptation (default: the game's adaptation protocol)")
+    episodes: NonNegativeInt = Field(
+        200, description="episodes per evaluation (0 on the bandit: scored by the exact expectation alone)"
+    )
+    ppo: dict[str, Any] = Field(
+        default_factory=dict, description="PPO settings replacing the run's, e.g. --set ppo.lr=1e-4 or ppo.num_epochs=10"
+    )
+    seed: int = Field(0, description="seed of the evaluation episodes")
     # Curves trained together as replicas of one algorithm (speed only: each trains as it would
     # alone, except in games of varying length, Hanabi, where a copy waits for the longest).
-    max_pack: PositiveInt = 32
+    max_pack: PositiveInt = Field(
+        32, description="curves trained together in one algorithm, for speed (each trains as it would alone)"
+    )
+
+    @field_validator("ppo")
+    @classmethod
+    def _ppo_settings(cls, ppo: dict[str, Any]) -> dict[str, Any]:
+        # Checked here, before any training, against the settings it replaces (a partial override: the rest are the run's).
+        try:
+            PPOSettings.model_validate(ppo)
+        except ValidationError as exc:
+            raise ValueError(describe(exc)) from None
+        return ppo
 
     @model_validator(mode="after")
     def _consistent(self) -> "AdaptConfig":
-        if self.head_init != "fresh" and self.method == "scratch":
-            raise ValueError(f"head_init {self.head_init!r} needs the trained ego's heads; method 'scratch' starts from a fresh network")
-        if self.pick_steps is not None and self.head_init != "pick":
+        if adapter(self.head_init).needs_partner_heads and self.method == "scratch":
+            raise ValueError(
+                f"head_init {self.head_init!r} needs the trained ego's heads; method 'scratch' starts from a fresh network"
+            )
+        if self.pick_steps is not None and self.head_init != PICK:
             raise ValueError(f"pick_steps is set but head_init is {self.head_init!r}; set head_init: pick to use it")
-        if self.guard and self.head_init == "pick":
-            raise ValueError("guard: true compares the adapting ego with the ego before any update, but head_init 'pick' replaces that ego after it; use head_init fresh or posterior")
+        if self.guard and self.head_init not in adapter(GUARD).guards:
+            raise ValueError(
+                "guard: true compares the adapting ego with the ego before any update, but head_init 'pick' replaces that ego after it; use head_init fresh or posterior"
+            )
         return self

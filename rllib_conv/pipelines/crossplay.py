@@ -20,8 +20,8 @@ from rllib_conv import envs  # noqa: E402
 from rllib_conv.partners.bandit import BanditConventionPartner  # noqa: E402
 from rllib_conv.partners.base import Partner  # noqa: E402
 from rllib_conv.partners.blocks import BlocksLeader  # noqa: E402
+from rllib_conv.partners.episodes import play_episodes  # noqa: E402
 from rllib_conv.partners.kinds import partner_from_spec  # noqa: E402
-from rllib_conv.partners.play import play_episodes  # noqa: E402
 from rllib_conv.partners.population import PartnerEntry, Population  # noqa: E402
 
 

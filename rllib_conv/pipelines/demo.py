@@ -17,11 +17,11 @@ from rllib_conv import partners
 from rllib_conv.common.resources import config_file
 from rllib_conv.common.run_folders import trial_folders
 from rllib_conv.envs.bandit import CollaborativeBanditEnv, oracle_marginals
+from rllib_conv.envs.bandit.oracle import bandit_states
 from rllib_conv.pipelines.train import run
 from rllib_conv.training import experiment
 from rllib_conv.training.checkpoints import last_checkpoint
 from rllib_conv.training.evaluate import load_module, task_probs
-from rllib_conv.training.marginals import bandit_states
 
 DEMO_CONFIG = "bandit_modular.yaml"  # a shipped config (`tune_configs/` in the repository)
 

@@ -1,7 +1,7 @@
 """`rllib-conv marginals`: how close each trained task module is to the true marginals (the paper's marginals figure).
 
 One row per trained ego whose method has a learned estimate of the marginals (the
-registry's `marginals`): the L1 distance of `rllib_conv.training.marginals` on the
+registry's `marginals`): the L1 distance of `rllib_conv.training.marginal_distance` on the
 states its population's game defines.
 """
 
@@ -12,12 +12,13 @@ from pathlib import Path
 import pandas as pd
 
 from rllib_conv import partners
+from rllib_conv.common.atomic_files import replaced_atomically
 from rllib_conv.common.methods import method
 from rllib_conv.modules.multi import AGG_HEAD_ID
 from rllib_conv.training.checkpoints import last_checkpoint
 from rllib_conv.training.evaluate import load_module
 from rllib_conv.training.experiment import trial_config
-from rllib_conv.training.marginals import marginal_distances, marginal_states
+from rllib_conv.training.marginal_distance import marginal_distances, marginal_states
 
 
 def marginal_report(trials: list[Path], episodes: int = 200, seed: int = 0) -> pd.DataFrame:
@@ -51,3 +52,17 @@ def marginal_report(trials: list[Path], episodes: int = 200, seed: int = 0) -> p
             }
         )
     return pd.DataFrame(rows)
+
+
+def write_marginal_report(trials: list[Path], path: str | Path, episodes: int = 200, seed: int = 0) -> pd.DataFrame:
+    """The `marginal_report` of `trials`, written to the CSV `path`; ValueError (nothing written) when no ego has an estimate."""
+    table = marginal_report(trials, episodes=episodes, seed=seed)
+    if table.empty:
+        raise ValueError(
+            f"RUNS: none of the {len(trials)} trained egos has a learned estimate of the marginals (the method registry's `marginals`)"
+        )
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with replaced_atomically(path) as tmp:
+        table.to_csv(tmp, index=False)
+    return table

@@ -3,7 +3,7 @@
 Each seat (its syntax: `rllib-conv pair --help`) becomes a fixed `Partner`: an ego head or
 the task module alone of a trained ego's last checkpoint (sampling its policy), a
 population member, or a scripted kind built from its parameters. The seats play
-`episodes` episodes of one game (`partners.play.episode_stream`); the result is their
+`episodes` episodes of one game (`partners.episodes.episode_stream`); the result is their
 mean return, its standard error and, on the bandit, the exact expected return computed
 from the players' action probabilities (contexts uniform).
 """
@@ -20,12 +20,13 @@ import pandas as pd
 import yaml
 
 from rllib_conv import envs, partners
+from rllib_conv.common.atomic_files import replaced_atomically
 from rllib_conv.common.run_folders import trial_folders
 from rllib_conv.envs.bandit import CollaborativeBanditEnv
 from rllib_conv.modules.multi import TASK_ID
 from rllib_conv.partners.bandit import BanditConventionPartner
 from rllib_conv.partners.base import Partner
-from rllib_conv.partners.play import play_episodes
+from rllib_conv.partners.episodes import play_episodes
 from rllib_conv.partners.trained import PolicyPartner
 from rllib_conv.pipelines.pair_config import PairConfig, is_run, split_seat
 from rllib_conv.training.checkpoints import last_checkpoint
@@ -70,8 +71,8 @@ def seat(text: str, seed: int = 0) -> Seat:
             raise ValueError(f"seat {text!r}: the parameters must be a YAML mapping like {{arms: [0, 1]}}, got {what!r}")
         try:
             return Seat(text, partners.partner_from_spec({"name": text, "kind": source, "params": params}), None)
-        except TypeError as exc:  # unknown or missing constructor arguments
-            raise ValueError(f"seat {text!r}: {exc}") from None
+        except (TypeError, ValueError) as exc:  # unknown or missing constructor arguments, or values the kind refuses
+            raise ValueError(f"seat {text!r}: {' '.join(str(exc).split())}") from None
     if is_run(source):
         trials = trial_folders(source)
         if len(trials) > 1:
@@ -133,7 +134,12 @@ def pair(cfg: PairConfig) -> pd.DataFrame:
     """Play the seats of `cfg` together; one row: the game, seats, mean return, stderr and (bandit) exact return."""
     seats = [seat(text, cfg.seed) for text in cfg.seats]
     game, env_config = pair_game(seats, cfg.env, cfg.env_config)
-    env = envs.make(game, **env_config)
+    try:
+        env = envs.make(game, **env_config)
+    except (TypeError, ValueError) as exc:
+        if cfg.env_config is None:  # the seats' own settings: not the user's to fix
+            raise
+        raise ValueError(f"--env-config {cfg.env_config}: {' '.join(str(exc).split())}") from None
     agents = list(env.possible_agents)
     if len(seats) != len(agents):
         raise ValueError(f"{game} {env_config} has {len(agents)} seats ({', '.join(agents)}), got {len(seats)}")
@@ -148,3 +154,12 @@ def pair(cfg: PairConfig) -> pd.DataFrame:
     row |= {"episodes": cfg.episodes, "seed": cfg.seed, "mean_return": float(scores.mean()), "stderr": stderr, "exact_return": exact}
     return pd.DataFrame([row])
 
+
+def write_pair(cfg: PairConfig, path: str | Path) -> pd.DataFrame:
+    """Play the seats of `cfg` together (`pair`) and write the row to the CSV `path`; return it."""
+    table = pair(cfg)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with replaced_atomically(path) as tmp:
+        table.to_csv(tmp, index=False)
+    return table

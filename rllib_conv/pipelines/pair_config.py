@@ -1,7 +1,7 @@
 """`PairConfig`: the schema of `rllib-conv pair` (fixed players, one per seat, for N episodes), and how a seat splits.
 
 Kept free of torch and Ray, so the command line checks a pairing before it loads anything;
-the seat syntax is documented in `rllib-conv pair --help` (`rllib_conv.cli.SEAT_SYNTAX`).
+the seat syntax (`SEAT_SYNTAX`) is what `rllib-conv pair --help` shows.
 """
 
 from __future__ import annotations
@@ -16,14 +16,42 @@ from rllib_conv.common.run_folders import POPULATION_FILE
 from rllib_conv.training.settings import EnvName
 
 SEAT_SEPARATOR = ":"
+MAX_EPISODES = 10**9  # beyond any real use, and within what Python's iterators and NumPy's arrays count
+
+SEAT_SYNTAX = """\
+A seat is SOURCE:WHAT, read in this order:
+  KIND:PARAMS   a scripted partner kind with its parameters as a YAML mapping,
+                e.g. 'bandit_convention:{arms: [0, 5, 2, 3]}' (kinds and parameters: docs/cli.md)
+  RUN:MODULE    a module of a trained ego's last checkpoint: RUN:ego@NAME (the head trained with
+                partner NAME), RUN:ego (the one head of agg/maml egos), RUN:task (the task module alone)
+  POP:NAME      member NAME of population POP (a built-in name, a manifest or a population folder)
+SOURCE is the longest part before a colon that is an existing file or folder (so a run path may
+hold colons), else the part before the first colon. Seats fill the game's agents in order
+(player_0, player_1, ...).
+"""
+
+
+def _exists(path: str) -> bool:
+    """Whether `path` names a file or folder (a name no file system accepts names none)."""
+    try:
+        return Path(path).exists()
+    except (OSError, ValueError):  # too long, or a NUL byte
+        return False
 
 
 def split_seat(text: str) -> tuple[str, str]:
-    """Split a seat `SOURCE:WHAT` at its first colon; ValueError naming the seat when there is none."""
-    source, sep, what = text.partition(SEAT_SEPARATOR)
-    if not sep or not source:
+    """Split a seat `SOURCE:WHAT`; ValueError naming the seat when it has no SOURCE or no colon.
+
+    SOURCE is the longest part before a colon that is an existing file or folder (a run or
+    manifest path may hold colons: `runs/a:b/trial:ego`); otherwise the part before the first
+    colon (kind and built-in population names hold none, and a kind's PARAMS may: `{arms: [0]}`).
+    """
+    cuts = [i for i, c in enumerate(text) if c == SEAT_SEPARATOR]
+    on_disk = [i for i in cuts if i > 0 and _exists(text[:i])]
+    cut = on_disk[-1] if on_disk else cuts[0] if cuts else -1
+    if cut <= 0:
         raise ValueError(f"seat {text!r}: expected SOURCE:WHAT (KIND:PARAMS, RUN:MODULE or POP:NAME)")
-    return source, what
+    return text[:cut], text[cut + 1 :]
 
 
 def is_run(source: str) -> bool:
@@ -38,11 +66,13 @@ class PairConfig(Strict):
     `env_config` choose it when the seats name none (scripted kinds only) or different ones.
     """
 
-    seats: list[str] = Field(min_length=2)
-    episodes: PositiveInt = 200
-    seed: int = 0
-    env: EnvName | None = None
-    env_config: dict[str, Any] | None = None
+    seats: list[str] = Field(min_length=2, description="one player per seat of the game, in the game's agent order")
+    episodes: PositiveInt = Field(200, le=MAX_EPISODES, description="episodes to play")
+    seed: int = Field(0, description="seed of the episodes and the players")
+    env: EnvName | None = Field(None, description="the game, when no seat names one or the seats name different ones")
+    env_config: dict[str, Any] | None = Field(
+        None, description="the game's settings as a YAML mapping, e.g. '{symmetric: 1}' (default: the seats')"
+    )
 
     @field_validator("seats")
     @classmethod

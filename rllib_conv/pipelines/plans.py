@@ -5,7 +5,8 @@ trained-ego variants (`methods`: label -> experiment settings), the adaptation-o
 and, at each scale (`full`, `quick`), the populations with their methods, the self-play
 populations, the zero-shot populations and the overrides. `plan_for` turns a file into a
 `Plan`; `narrow` keeps part of it (`--populations`, `--methods`). See `plan_bandit.yaml`'s
-header for the keys.
+header for the keys. Any registered game runs from a plan file given as `path` (a game
+named by import path included); `reproduce all` runs the games the package ships a plan for.
 """
 
 from __future__ import annotations
@@ -14,13 +15,15 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from pydantic import Field, PositiveInt, ValidationError, model_validator
+from pydantic import Field, NonNegativeFloat, PositiveInt, ValidationError, model_validator
 
+from rllib_conv import envs
 from rllib_conv.common import config_files
 from rllib_conv.common.config_files import Strict
-from rllib_conv.common.resources import config_file
+from rllib_conv.common.resources import available, config_file
 
-GAMES = ("bandit", "blocks", "hanabi")
+# The registered games the package ships a plan for: what `reproduce all` runs.
+GAMES = tuple(g.name for g in envs.games() if f"plan_{g.name}.yaml" in available())
 
 
 @dataclass
@@ -64,6 +67,8 @@ class Plan:
     adapt_overrides: dict[str, Any] = field(default_factory=dict)
     zeroshot_overrides: dict[str, Any] = field(default_factory=dict)
     quick: bool = False
+    # The report's "no worse" margin in the game's score units (None: 1% of the game's maximum score); declared before the run.
+    no_worse_margin: float | None = None
 
 
 # --- the file's schema ------------------------------------------------------------------------
@@ -100,6 +105,7 @@ class PlanFile(Strict):
     paper_method: str
     methods: dict[str, dict[str, Any]]
     adapt_variants: dict[str, AdaptVariantSpec] = Field(default_factory=dict)
+    no_worse_margin: NonNegativeFloat | None = None
     full: ScaleSpec
     quick: ScaleSpec
 
@@ -139,11 +145,12 @@ def read_plan_file(path: str | Path) -> PlanFile:
 def plan_for(game: str, seeds: int = 3, quick: bool = False, train_steps: int | None = None, path: str | Path | None = None) -> Plan:
     """The plan of `game` from `path` (default: the shipped plan), at the paper's scale or, with `quick`, the small one.
 
-    Egos train for the paper's budget (`rllib_conv.envs.defaults.GAME_DEFAULTS`) unless
+    Egos train for the game's budget (its record's `training_defaults()`) unless
     `train_steps` sets another; the full plan runs seeds 0..`seeds`-1, the quick one seed 0.
     """
-    if game not in GAMES:
-        raise ValueError(f"game must be one of {', '.join(GAMES)} (or all), got {game!r}")
+    record = envs.game(game)  # ValueError naming the registered games
+    if path is None and game not in GAMES:
+        raise ValueError(f"game {game!r} has no shipped plan (games with one: {', '.join(GAMES)}, or all); give a plan file with --plan")
     if seeds < 1:
         raise ValueError(f"--seeds: expected at least 1 seed per method, got {seeds}")
     if train_steps is not None and train_steps < 1:
@@ -155,6 +162,8 @@ def plan_for(game: str, seeds: int = 3, quick: bool = False, train_steps: int | 
     variants = {label: TrainedVariant(label, settings) for label, settings in spec.methods.items()}
     adapt_variants = {label: AdaptVariant(label, variants[v.base], v.settings) for label, v in spec.adapt_variants.items()}
     scale = spec.quick if quick else spec.full
+    if scale.zeroshot_populations and not record.new_task:
+        raise ValueError(f"plan file {str(source)!r}: zero-shot populations for {game!r}, a game without a new task (its record's new_task)")
     return Plan(
         game=game,
         seeds=[0] if quick else list(range(seeds)),
@@ -173,6 +182,7 @@ def plan_for(game: str, seeds: int = 3, quick: bool = False, train_steps: int | 
         adapt_overrides=scale.adapt_overrides,
         zeroshot_overrides=scale.zeroshot_overrides,
         quick=quick,
+        no_worse_margin=spec.no_worse_margin,
     )
 
 

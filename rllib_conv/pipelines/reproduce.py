@@ -41,37 +41,41 @@ from typing import Any
 
 import pandas as pd
 
-from rllib_conv import partners
+from rllib_conv import envs, partners
 from rllib_conv.common import config_files
 from rllib_conv.common.resources import config_file
 from rllib_conv.common.run_folders import (
-    ADAPT_PREFIX,
+    ADAPT,
     ADAPTATION_DIR,
     EVAL_FILE,
+    MARGINALS,
     MARGINALS_FILE,
     MARKER_SUFFIX,
     PLAN_FILE,
     POPULATION_FILE,
     POPULATIONS_DIR,
     RUNS_DIR,
+    SELFPLAY,
     SPEC_FILE,
     SUPERSEDED_DIR,
+    TRAIN,
+    ZEROSHOT,
     ZEROSHOT_DIR,
-    ZEROSHOT_PREFIX,
+    config_run_name,
     experiment_name,
     experiment_of,
     marker_path,
     read_marker,
     read_trial_config,
     split_experiment,
+    stage_run_prefix,
     trial_folders,
     write_marker,
 )
-from rllib_conv.envs.defaults import GAME_DEFAULTS
 from rllib_conv.envs.oracles import has_oracle
 from rllib_conv.pipelines.adapt import run_adaptations
 from rllib_conv.pipelines.adapt_config import AdaptConfig
-from rllib_conv.pipelines.marginals import marginal_report
+from rllib_conv.pipelines.marginal_report import marginal_report
 from rllib_conv.pipelines.plans import GAMES, AdaptVariant, Plan, TrainedVariant, narrow, plan_for
 from rllib_conv.pipelines.selfplay import train_population
 from rllib_conv.pipelines.selfplay_config import SelfPlayConfig
@@ -82,7 +86,7 @@ from rllib_conv.training.experiment import ExperimentConfig
 
 # Stages `redo` can run again: where each experiment's CSV and Tune folder live. Training and
 # self-play feed every later stage, so redoing those means a fresh output folder.
-REDO_OUTPUTS = {"adapt": (ADAPTATION_DIR, ADAPT_PREFIX), "zeroshot": (ZEROSHOT_DIR, ZEROSHOT_PREFIX), "marginals": None}
+REDO_OUTPUTS = {ADAPT: ADAPTATION_DIR, ZEROSHOT: ZEROSHOT_DIR, MARGINALS: None}
 
 
 def _merge(base: dict[str, Any], extra: dict[str, Any]) -> dict[str, Any]:
@@ -119,7 +123,7 @@ class Reproduction:
 
     def train_steps(self, experiment: dict[str, Any]) -> int:
         """The env steps each ego of `experiment` (an `experiment(...)` dict) trains for."""
-        return experiment.get("run", {}).get("timesteps") or GAME_DEFAULTS[self.plan.game]["timesteps"]
+        return experiment.get("run", {}).get("timesteps") or envs.game(self.plan.game).training_defaults().timesteps
 
     def stage_selfplay(self) -> None:
         for overrides in self.plan.selfplay:
@@ -201,11 +205,11 @@ class Reproduction:
 
     def stages(self) -> list[tuple[str, Callable[[], None]]]:
         """The plan's stages, in order."""
-        stages = [("selfplay", self.stage_selfplay), ("train", self.stage_train), ("adapt", self.stage_adapt)]
+        stages = [(SELFPLAY, self.stage_selfplay), (TRAIN, self.stage_train), (ADAPT, self.stage_adapt)]
         if self.plan.zeroshot_populations:
-            stages.append(("zeroshot", self.stage_zeroshot))
+            stages.append((ZEROSHOT, self.stage_zeroshot))
         if has_oracle(self.plan.game):
-            stages.append(("marginals", self.stage_marginals))
+            stages.append((MARGINALS, self.stage_marginals))
         return stages
 
     def run(self) -> dict[str, float]:
@@ -215,6 +219,9 @@ class Reproduction:
         # The items let a report tell a stage this plan finished from one an earlier, smaller plan finished.
         items = {n: self.stage_items(n) for n, _ in stages}
         plan = {"game": self.plan.game, "seeds": self.plan.seeds, "quick": self.plan.quick, "train_steps": self.plan.train_steps, "stages": list(items), "items": items}
+        plan["report"] = envs.game(self.plan.game).report_facts()  # what the report needs of the game (analysis reads files only)
+        if self.plan.no_worse_margin is not None:
+            plan["no_worse_margin"] = self.plan.no_worse_margin  # the "no worse" claims' margin, declared in the plan
         (self.root / PLAN_FILE).write_text(json.dumps(plan, indent=2))
         times = {}
         for name, stage in stages:
@@ -238,13 +245,13 @@ class Reproduction:
         if stage not in REDO_OUTPUTS:
             raise ValueError(f"--redo: expected one of {sorted(REDO_OUTPUTS)}, got {stage!r}")
         items = self.stage_items(stage)
-        if stage == "marginals":
+        if stage == MARGINALS:
             outputs = [self.root / MARGINALS_FILE]
         else:
-            folder, prefix = REDO_OUTPUTS[stage]
+            folder = REDO_OUTPUTS[stage]
             names = self.stage_experiments(stage)
-            outputs = [p for n in names for p in (self.root / folder / f"{n}.csv", self.runs / f"{prefix}{n}")]
-            outputs += stage_runs(self.runs, f"{prefix}stage-", names)
+            outputs = [p for n in names for p in (self.root / folder / f"{n}.csv", self.runs / config_run_name(stage, n))]
+            outputs += stage_runs(self.runs, stage_run_prefix(stage), names)
         dest = self.root / SUPERSEDED_DIR / time.strftime("%Y%m%d-%H%M%S")
         moved = []
         for path in outputs:
@@ -264,11 +271,11 @@ class Reproduction:
         trained = [self.experiment(p, m)["name"] for p, m in self.trained()]
         zeroshot = [self.experiment(p, m)["name"] for p in self.plan.zeroshot_populations for m in self.plan.zeroshot_methods]
         return {
-            "selfplay": [sp["name"] for sp in self.plan.selfplay],
-            "train": [e["name"] for e in self.training()],
-            "adapt": [*trained, *(experiment_name(p, v.label) for p, ms in self.populations().items() for v in self.variants(ms))],
-            "zeroshot": zeroshot,
-            "marginals": sorted(n for n in {*trained, *zeroshot} if self.has_marginals(n)),
+            SELFPLAY: [sp["name"] for sp in self.plan.selfplay],
+            TRAIN: [e["name"] for e in self.training()],
+            ADAPT: [*trained, *(experiment_name(p, v.label) for p, ms in self.populations().items() for v in self.variants(ms))],
+            ZEROSHOT: zeroshot,
+            MARGINALS: sorted(n for n in {*trained, *zeroshot} if self.has_marginals(n)),
         }[stage]
 
     def stage_items(self, stage: str) -> list[str]:
@@ -278,7 +285,7 @@ class Reproduction:
         again, and `fit` refuses to continue a folder trained for a different one.
         """
         seeds = f" seeds={','.join(map(str, self.plan.seeds))}"
-        if stage == "train":
+        if stage == TRAIN:
             return [f"{e['name']}{seeds} steps={self.train_steps(e)}" for e in self.training()]
         return [name + seeds for name in self.stage_experiments(stage)]
 

@@ -35,24 +35,24 @@ from rllib_conv.common.config_files import validate
 from rllib_conv.common.run_folders import (
     POPULATION_FILE,
     RL_MODULE_DIR,
-    SELFPLAY_PREFIX,
+    SELFPLAY,
     SELFPLAY_REPORT_FILE,
     SELFPLAY_TRIAL_FILE,
 )
 from rllib_conv.common.sealed import seal, verify
+from rllib_conv.common.seeds import pair_seed, stream_seed
 from rllib_conv.envs.rllib_adapter import PettingZooMultiAgentEnv, RLlibGame, game_env_config
 from rllib_conv.learners.marginal_learner import MarginalPPOLearner
-from rllib_conv.learners.minibatches import module_seed
 from rllib_conv.learners.settings import LearnerSettings
 from rllib_conv.modules.task_module import TaskModule
-from rllib_conv.partners.play import play_episodes
+from rllib_conv.partners.episodes import play_episodes
 from rllib_conv.partners.population import PartnerEntry, Population
 from rllib_conv.partners.trained import PolicyPartner
 from rllib_conv.pipelines.selfplay_config import SelfPlayConfig
 from rllib_conv.training.algorithm import base_ppo_config
-from rllib_conv.training.callbacks import STEPS_DONE, STEPS_TOTAL, StageProgress
+from rllib_conv.training.callbacks import STEPS_DONE, STEPS_TOTAL
+from rllib_conv.training.stage import Stage, fit_stage
 from rllib_conv.training.trainable import AlgorithmTrainable
-from rllib_conv.training.tuning import fit
 
 SEAT_PREFIX = "seat@"
 SHARED_SEAT = "seat@all"
@@ -91,9 +91,9 @@ def build_selfplay_config(cfg: SelfPlayConfig) -> PPOConfig:
         )
         for a in game_agents(cfg)
     }
-    shuffle_seeds = {mid: module_seed(cfg.seed + cfg.pair, mid) for mid in specs}
+    shuffle_seeds = {mid: stream_seed(pair_seed(cfg.seed, cfg.pair), mid) for mid in specs}
     return (
-        base_ppo_config(RLlibGame, game_env_config(cfg.env, cfg.env_config), cfg.ppo, cfg.run, cfg.seed + cfg.pair, cfg.ppo.rollout_per_partner)
+        base_ppo_config(RLlibGame, game_env_config(cfg.env, cfg.env_config), cfg.ppo, cfg.run, pair_seed(cfg.seed, cfg.pair), cfg.ppo.rollout_per_partner)
         # A list, not a set: see build_ppo_config.
         .multi_agent(policies=list(specs), policy_mapping_fn=SeatMapping(cfg.shared_seats), policies_to_train=list(specs))
         .rl_module(rl_module_spec=MultiRLModuleSpec(rl_module_specs=specs))
@@ -144,7 +144,7 @@ class SelfPlayTrainable(AlgorithmTrainable):
         if iteration % gate.check_every == 0 or budget_spent:
             out["gate_check"] = selfplay_score(module, cfg, gate.check_episodes, seed=100_000 + iteration)
             if out["gate_check"] >= gate.score or budget_spent:
-                self.score = selfplay_score(module, cfg, gate.episodes, seed=cfg.seed + cfg.pair)
+                self.score = selfplay_score(module, cfg, gate.episodes, seed=pair_seed(cfg.seed, cfg.pair))
                 self.passed = self.score >= gate.score
                 if self.passed:
                     self.steps_to_gate = steps
@@ -152,7 +152,7 @@ class SelfPlayTrainable(AlgorithmTrainable):
         if out["done"]:
             report = {
                 "pair": cfg.pair,
-                "seed": cfg.seed + cfg.pair,
+                "seed": pair_seed(cfg.seed, cfg.pair),
                 "passed": self.passed,
                 "score": self.score,
                 "steps_to_gate": self.steps_to_gate,
@@ -233,9 +233,10 @@ def train_population(
         raise ValueError(f"population folder {str(target)!r} already exists; choose another name or pass --overwrite")
     pairs = cfg.train_pairs + cfg.test_pairs
     checkpoint = tune.CheckpointConfig(num_to_keep=1, checkpoint_frequency=cfg.run.checkpoint_every, checkpoint_at_end=True)
-    progress = StageProgress(label, stops_early="a pair stops when it passes the gate") if label else "lines"
+    stage = Stage(SELFPLAY, SelfPlayTrainable, checkpoint, stops_early="a pair stops when it passes the gate")
+    # One pair a trial: the units need no packing, and the trials' configs are the config with its pair.
     space = {**raw, "pair": tune.grid_search(list(range(pairs)))}
-    results = fit(SelfPlayTrainable, raw, space, f"{SELFPLAY_PREFIX}{cfg.name}", storage, address, checkpoint, progress, loggers=loggers)
+    results = fit_stage(stage, raw, space, [cfg.name], storage, address, label, loggers)
     target.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f".{cfg.name}.", dir=target.parent))
     try:

@@ -18,7 +18,6 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Sequence
-from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -28,23 +27,23 @@ from ray.tune.search.variant_generator import generate_variants
 
 from rllib_conv.common.config_files import GRID_KEY, is_grid
 from rllib_conv.common.methods import method
-from rllib_conv.common.run_folders import EVAL_FILE, REPLICA_PREFIX, TRAIN_STAGE_PREFIX, replica_folder
+from rllib_conv.common.run_folders import EVAL_FILE, REPLICA_PREFIX, TRAIN, replica_folder
 from rllib_conv.envs.oracles import has_oracle
 from rllib_conv.learners.marginal_learner import HEAD_L2_KEY, MARGINAL_REG_KEY
 from rllib_conv.modules.multi import AGG_HEAD_ID, TASK_ID, partner_id, replica_id
 from rllib_conv.partners.population import with_absolute_paths
 from rllib_conv.training.algorithm import Replica, build_algorithm
-from rllib_conv.training.callbacks import STEPS_DONE, STEPS_TOTAL, StageProgress
+from rllib_conv.training.callbacks import STEPS_DONE, STEPS_TOTAL
 from rllib_conv.training.ego_setup import EgoSetup, resolve
 from rllib_conv.training.evaluate import ego_head_partner, player_return
 from rllib_conv.training.experiment import ExperimentConfig, validate
 from rllib_conv.training.maml import MetaTrainer
-from rllib_conv.training.marginals import marginal_distances, marginal_states
-from rllib_conv.training.packs import cluster_cpus, spread_over_cores
+from rllib_conv.training.marginal_distance import marginal_distances, marginal_states
 from rllib_conv.training.replica_export import export_replica, replica_module
 from rllib_conv.training.replica_steps import replica_env_steps
+from rllib_conv.training.stage import Stage, run_jobs, validated
 from rllib_conv.training.trainable import AlgorithmTrainable
-from rllib_conv.training.tuning import check_spec, fit, job_param_space, job_units, spec_name, to_param_space
+from rllib_conv.training.tuning import check_spec, fit, to_param_space
 from rllib_conv.training.weights import learner_module
 
 REPLICA_SEEDS = "replica_seeds"  # a trial config's seeds, trained together as replicas
@@ -222,20 +221,17 @@ def train_stage(
     interruption it continues (finished trials kept, interrupted ones from their checkpoints).
     """
     storage = Path(storage).resolve()
-    jobs, names, first = [], [], None
-    for raw in raws:
-        exp = _checked(raw)[0]
-        first = first or exp
+    exps = validated(raws, lambda raw: _checked(raw)[0], "train")
+    jobs, names = [], [exp.name for exp in exps]
+    for raw, exp in zip(raws, exps):
         check_spec(storage / exp.name, raw, grows="seed")  # more seeds later: the new ones train, the rest are kept
-        names.append(exp.name)
         jobs += training_jobs(raw, storage / exp.name)
     todo = [left for job in jobs if (left := _unfinished(job))]
     if not todo:
         return []
-    todo = spread_over_cores(todo, REPLICA_SEEDS, cluster_cpus(address), first_key="seed")
-    name = spec_name(TRAIN_STAGE_PREFIX, {"experiments": names, "jobs": jobs})
-    spec = {"experiments": names, "jobs": jobs}
-    results = fit(EgoTrainable, spec, job_param_space(todo), name, storage, address, _checkpoints(first), StageProgress(label, units=partial(job_units, key=REPLICA_SEEDS)), loggers=loggers)
+    stage = Stage(TRAIN, EgoTrainable, _checkpoints(exps[0]), units=REPLICA_SEEDS, first_key="seed")
+    spec = {"experiments": names, "jobs": jobs}  # every job, trained or not: the same experiments continue the same run
+    results = run_jobs(stage, spec, todo, names, storage, address, label, loggers)
     if results.errors:
-        raise RuntimeError(f"{len(results.errors)} training trial(s) failed; see {storage / name}")
+        raise RuntimeError(f"{len(results.errors)} training trial(s) failed; see {storage / stage.run_name(names, spec)}")
     return sorted({Path(job[EXPORT_KEY]).parent.name for job in todo})

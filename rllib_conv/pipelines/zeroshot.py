@@ -17,8 +17,7 @@ on the bandit, the exact expected return.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
-from functools import partial
+from collections.abc import Hashable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -26,35 +25,33 @@ import pandas as pd
 import torch
 from ray import tune
 
-from rllib_conv import partners
+from rllib_conv import envs, partners
 from rllib_conv.common import methods
 from rllib_conv.common.atomic_files import replaced_atomically
 from rllib_conv.common.config_files import validate
-from rllib_conv.common.run_folders import RL_MODULE_DIR, ZEROSHOT_PREFIX, trial_folders
-from rllib_conv.envs.defaults import ZEROSHOT_DEFAULTS
-from rllib_conv.learners.minibatches import module_seed
-from rllib_conv.modules.ego_stack import TASK_LOGITS_LAYER
+from rllib_conv.common.run_folders import RL_MODULE_DIR, ZEROSHOT, trial_folders
+from rllib_conv.common.seeds import stream_seed
 from rllib_conv.modules.mlp import mlp, seeded_generator
 from rllib_conv.modules.multi import TASK_ID, ego_id
-from rllib_conv.modules.stacked_multi import STACK_ID
-from rllib_conv.partners.population import with_absolute_paths
+from rllib_conv.modules.packed.ego_stack import TASK_LOGITS_LAYER
+from rllib_conv.modules.packed.stacked_multi import STACK_ID
 from rllib_conv.pipelines.zeroshot_config import ZeroShotConfig
 from rllib_conv.training.algorithm import Replica, build_algorithm, packing_key
-from rllib_conv.training.callbacks import STEPS_DONE, STEPS_TOTAL, StageProgress
+from rllib_conv.training.callbacks import STEPS_DONE, STEPS_TOTAL
 from rllib_conv.training.checkpoints import last_checkpoint
 from rllib_conv.training.ego_setup import setup_for
 from rllib_conv.training.evaluate import ego_head_partner, player_return
 from rllib_conv.training.experiment import ExperimentConfig, trial_config
-from rllib_conv.training.packs import cluster_cpus, packs, spread_over_cores, write_tables
 from rllib_conv.training.replica_export import replica_module
 from rllib_conv.training.replica_steps import replica_env_steps
 from rllib_conv.training.settings import MappingSettings
+from rllib_conv.training.stage import Stage, Table, run_packed, validated
 from rllib_conv.training.trainable import AlgorithmTrainable
-from rllib_conv.training.tuning import fit, job_param_space, job_units, spec_name
 from rllib_conv.training.weights import learner_module, push_learner_weights
 
 RESULT_COLUMNS = ["run", "method", "lam", "seed", "partner", "mean_return", "stderr", "exact_return"]
 RESULTS_FILE = "zeroshot.csv"  # a finished pack's rows, in its trial folder
+RESULTS_TABLE = Table(RESULTS_FILE, RESULT_COLUMNS, order=["run", "partner"], what="zero-shot")
 
 
 def zeroshot_plan(cfg: ZeroShotConfig, run: str | Path) -> dict[str, Any]:
@@ -70,14 +67,14 @@ def zeroshot_plan(cfg: ZeroShotConfig, run: str | Path) -> dict[str, Any]:
         missing = {e.name for e in old.entries(split)} - {e.name for e in new.entries(split)}
         if missing:
             raise ValueError(f"new-task population {new.name!r} lacks the {split} partners {sorted(missing)} of {old.name!r}")
-    defaults = ZEROSHOT_DEFAULTS.get(trained.env, {"head_steps": 10 * trained.ppo.rollout_per_partner, "task_steps": trained.run.timesteps})
+    defaults = envs.game(trained.env).zeroshot_defaults(trained.ppo.rollout_per_partner, trained.run.timesteps)
     return {
         "trained": trained,
         "old": old,
         "new": new,
         "checkpoint": last_checkpoint(trial) / RL_MODULE_DIR,
-        "head_steps": cfg.head_steps or defaults["head_steps"],
-        "task_steps": cfg.task_steps or defaults["task_steps"],
+        "head_steps": cfg.head_steps or defaults.head_steps,
+        "task_steps": cfg.task_steps or defaults.task_steps,
         **step_experiments(trained, cfg),
     }
 
@@ -204,7 +201,7 @@ class ZeroShotTrainable(AlgorithmTrainable):
 def reset_logits_state(task_state: dict[str, torch.Tensor], seed: int) -> dict[str, torch.Tensor]:
     """A task module state with its task-logits layer re-initialised as a fresh module's (seeded from `seed`)."""
     weight = task_state[f"{TASK_LOGITS_LAYER}.weight"]
-    fresh = mlp([weight.shape[1], weight.shape[0]], out_gain=0.01, generator=seeded_generator(module_seed(seed, "task_logits_reset")))
+    fresh = mlp([weight.shape[1], weight.shape[0]], out_gain=0.01, generator=seeded_generator(stream_seed(seed, "task_logits_reset")))
     return {**task_state, f"{TASK_LOGITS_LAYER}.weight": fresh[0].weight.detach(), f"{TASK_LOGITS_LAYER}.bias": fresh[0].bias.detach()}
 
 
@@ -221,26 +218,16 @@ def run_zeroshots(
     One row per (run, test partner). One config runs as the Tune experiment `zeroshot-<name>`,
     several as `zeroshot-stage-<hash>`; `label` names the stage in its progress line.
     """
-    cfgs = [validate(raw, schema=ZeroShotConfig)[0] for raw in raws]
-    names = [c.name for c in cfgs]
-    if len(set(names)) < len(names):
-        raise ValueError(f"zero-shot configs must have different names; got {names}")
+    cfgs = validated(raws, lambda raw: validate(raw, schema=ZeroShotConfig)[0], "zero-shot")
     runs = [[str(t.resolve()) for run in cfg.runs for t in trial_folders(run)] for cfg in cfgs]
     plans = {(i, run): zeroshot_plan(cfg, run) for i, (cfg, rs) in enumerate(zip(cfgs, runs)) for run in rs}  # not modular, no new-task partners: fail early
-    cpus = cluster_cpus(address)
 
-    def key(i: int) -> Any:
-        return lambda run: packing_key(setup_for(plans[(i, run)]["heads"], plans[(i, run)]["old"], plans[(i, run)]["old"].entries("test")))
+    def key(i: int, run: str) -> Hashable:
+        plan = plans[(i, run)]
+        return packing_key(setup_for(plan["heads"], plan["old"], plan["old"].entries("test")))
 
-    total = sum(map(len, runs))
-    # Manifest paths made absolute: Tune runs every trial in its own folder.
-    jobs = [{"index": i, "config": with_absolute_paths(raw, "new_population"), "runs": pack} for i, (raw, cfg, rs) in enumerate(zip(raws, cfgs, runs)) for pack in packs(rs, key(i), cpus, cfg.max_pack, total)]
-    jobs = spread_over_cores(jobs, "runs", cpus)
-    spec: Any = raws[0] if len(raws) == 1 else {"experiments": names, "configs": raws}
-    name = f"{ZEROSHOT_PREFIX}{cfgs[0].name}" if len(raws) == 1 else spec_name(f"{ZEROSHOT_PREFIX}stage-", spec)
-    progress = StageProgress(label, units=partial(job_units, key="runs")) if label else "lines"
-    results = fit(ZeroShotTrainable, spec, job_param_space(jobs), name, storage, address, tune.CheckpointConfig(checkpoint_at_end=False), progress, loggers=loggers)
-    return write_tables(results, cfgs, RESULTS_FILE, RESULT_COLUMNS, ["run", "partner"], Path(out), "zero-shot")
+    stage = Stage(ZEROSHOT, ZeroShotTrainable, tune.CheckpointConfig(checkpoint_at_end=False), units="runs", table=RESULTS_TABLE, manifest_key="new_population")
+    return run_packed(stage, raws, cfgs, runs, key, out, storage, address, label, loggers)
 
 
 def run_zeroshot(

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from pydantic import NonNegativeFloat, PositiveInt
+from pydantic import Field, NonNegativeFloat, PositiveInt
 
 from rllib_conv.common.config_files import Strict
 from rllib_conv.training.settings import EntropyCoeff, FolderName
@@ -24,19 +24,27 @@ class ZeroShotConfig(Strict):
     `new_population` defaults to the run's population + "-newtask".
     """
 
-    name: FolderName = "zeroshot"
-    runs: list[str]
-    new_population: str | None = None
-    head_steps: PositiveInt | None = None
-    task_steps: PositiveInt | None = None
-    reset_task_logits: bool = True
+    name: FolderName = Field("zeroshot", description="name of the output CSV and Tune experiment")
+    runs: list[str] = Field(description="trained-ego trial folders or experiment folders")
+    new_population: str | None = Field(
+        None, description="population of the same partners on the new task (default: POPULATION-newtask)"
+    )
+    head_steps: PositiveInt | None = Field(
+        None, description="step 1: env steps training the test partners' heads on the old task (default: the game's)"
+    )
+    task_steps: PositiveInt | None = Field(
+        None, description="step 2: env steps re-training the task module on the new task (default: the game's)"
+    )
+    reset_task_logits: bool = Field(True, description="step 2: re-initialise the task logits layer first")
     # Trained heads carry some of the old rules too; without exploration the task module
     # never tries the new rule actions (the original code's 0.49 on the bandit).
-    task_entropy: EntropyCoeff = 0.05
-    task_lam: NonNegativeFloat | None = None
-    task_z_lr_scale: NonNegativeFloat = 1.0
-    head_lam: NonNegativeFloat | None = None
-    episodes: PositiveInt = 200
-    seed: int = 0
+    task_entropy: EntropyCoeff = Field(
+        0.05, description="step 2: entropy bonus, a constant or a schedule [[0, 0.05], [STEP, VALUE]]"
+    )
+    task_lam: NonNegativeFloat | None = Field(None, description="step 2: regulariser weight (default: the run's lam)")
+    task_z_lr_scale: NonNegativeFloat = Field(1.0, description="step 2: learning-rate scale of the z layers (0 freezes them)")
+    head_lam: NonNegativeFloat | None = Field(None, description="step 1: regulariser weight (default: the run's lam)")
+    episodes: PositiveInt = Field(200, description="step 3: evaluation episodes")
+    seed: int = Field(0, description="seed of the evaluation episodes")
     # Egos run together as replicas of one algorithm (speed only: each runs as it would alone).
-    max_pack: PositiveInt = 32
+    max_pack: PositiveInt = Field(32, description="egos run together in one algorithm, for speed (each runs as it would alone)")

@@ -22,19 +22,18 @@ from ray.rllib.core.rl_module.rl_module import RLModuleSpec
 
 from rllib_conv import envs
 from rllib_conv.common.methods import method
+from rllib_conv.common.seeds import partner_seed, sampling_seed, shuffle_seed, stream_seed
 from rllib_conv.envs.replicated_game import ReplicatedGame, replicated_env_config
 from rllib_conv.envs.rllib_adapter import PettingZooMultiAgentEnv
 from rllib_conv.learners.marginal_learner import MarginalPPOLearner
-from rllib_conv.learners.minibatches import module_seed
 from rllib_conv.modules import TASK_ID, FixedPartnerModule, PartnerHeadModule, PartnerMapping, TaskModule, partner_id
-from rllib_conv.modules.ego_stack import EgoStack
 from rllib_conv.modules.multi import replica_id
+from rllib_conv.modules.packed.ego_stack import EgoStack
+from rllib_conv.modules.packed.stacked_multi import STACK_ID, HeadView, StackedEgoMultiRLModule
 from rllib_conv.modules.partner_schedule import PartnerFunction, RoundRobin, WeightedPartners
-from rllib_conv.modules.stacked_multi import STACK_ID, HeadView, StackedEgoMultiRLModule
 from rllib_conv.partners.trained import load_rl_module
 from rllib_conv.training.batched_env_runner import BatchedEnvRunner
 from rllib_conv.training.ego_setup import EgoSetup
-from rllib_conv.training.lean_env_runner import LeanEnvRunner
 from rllib_conv.training.settings import MappingSettings, PPOSettings, RunSettings
 from rllib_conv.training.weights import push_learner_weights
 
@@ -95,7 +94,7 @@ def module_specs(setup: EgoSetup, load: dict[str, str] | None = None, seed: int 
     exp = setup.exp
     ego_obs, ego_act, p_obs, p_act = _spaces(setup)
     task_config, head_config = _module_configs(setup)
-    seeded = (lambda mid: {} if seed is None else {"init_seed": module_seed(seed, mid)})  # noqa: E731
+    seeded = (lambda mid: {} if seed is None else {"init_seed": stream_seed(seed, mid)})  # noqa: E731
     specs = {TASK_ID: RLModuleSpec(module_class=TaskModule, observation_space=ego_obs, action_space=ego_act, model_config={**task_config, **seeded(TASK_ID)})}
     for mid in setup.head_ids:
         specs[mid] = RLModuleSpec(module_class=PartnerHeadModule, observation_space=ego_obs, action_space=ego_act, model_config={**head_config, **seeded(mid)})
@@ -127,8 +126,8 @@ def _partner_specs(setup: EgoSetup, obs_space: Any, act_space: Any, seed: int, r
     for i, entry in enumerate(setup.train):
         mid = partner_id(entry.name)
         spec = {"name": entry.name, "kind": entry.kind, "params": entry.params}
-        partner_seed = module_seed(seed, mid) if seeded else seed * 1000 + i
-        specs[replica_id(mid, replica)] = RLModuleSpec(module_class=FixedPartnerModule, observation_space=obs_space, action_space=act_space, model_config={"partner": spec, "seed": partner_seed})
+        module_seed = stream_seed(seed, mid) if seeded else partner_seed(seed, i)
+        specs[replica_id(mid, replica)] = RLModuleSpec(module_class=FixedPartnerModule, observation_space=obs_space, action_space=act_space, model_config={"partner": spec, "seed": module_seed})
     return specs
 
 
@@ -143,9 +142,9 @@ def stacked_specs(replicas: list[Replica]) -> dict[str, RLModuleSpec]:
         "task": task_config,
         "head": head_config,
         # The seeds a replica's plain modules get (`module_specs(seed=...)`): it starts as it would alone.
-        "task_seeds": [module_seed(rep.own_seed, TASK_ID) for rep in replicas],
-        "head_seeds": [[module_seed(rep.own_seed, mid) for mid in rep.setup.head_ids] for rep in replicas],
-        "sample_seeds": [module_seed(rep.own_seed + 1, "explore") for rep in replicas],
+        "task_seeds": [stream_seed(rep.own_seed, TASK_ID) for rep in replicas],
+        "head_seeds": [[stream_seed(rep.own_seed, mid) for mid in rep.setup.head_ids] for rep in replicas],
+        "sample_seeds": [sampling_seed(rep.own_seed) for rep in replicas],
     }
     specs = {STACK_ID: RLModuleSpec(module_class=EgoStack, observation_space=ego_obs, action_space=ego_act, model_config=stack_config)}
     for r, rep in enumerate(replicas):
@@ -160,7 +159,7 @@ def base_ppo_config(env_class: type, env_config: dict, ppo: PPOSettings, run: Ru
 
     `env_class` and `env_config` are the RLlib env: `ReplicatedGame` for egos, `RLlibGame`
     for self-play pairs (their configs come from `replicated_env_config` / `game_env_config`);
-    `BatchedEnvRunner` samples it, or RLlib's episodes (`LeanEnvRunner`) with `run.batched_sampling: false`.
+    `BatchedEnvRunner` samples it.
     """
     return (
         PPOConfig()
@@ -172,8 +171,8 @@ def base_ppo_config(env_class: type, env_config: dict, ppo: PPOSettings, run: Ru
             disable_env_checking=True,
         )
         .env_runners(
-            # `BatchedEnvRunner` samples without RLlib's episode objects; `run.batched_sampling: false` keeps them.
-            env_runner_cls=BatchedEnvRunner if run.batched_sampling else LeanEnvRunner,
+            # Samples without RLlib's episode objects, the same train batches (`tests/training/test_batched_env_runner.py`).
+            env_runner_cls=BatchedEnvRunner,
             num_env_runners=run.num_env_runners,
             num_envs_per_env_runner=run.num_envs_per_env_runner,
             rollout_fragment_length="auto",
@@ -233,11 +232,11 @@ def build_ppo_config(setup: EgoSetup | list[Replica], load: dict[str, str] | Non
         first.partner_agent,
         shared_head=method(exp.method).single_head,
         replica_partners=[[e.name for e in rep.setup.train] for rep in replicas],
-        schedule=partner_schedule(exp.mapping, [module_seed(rep.own_seed, "mapping") for rep in replicas]),
+        schedule=partner_schedule(exp.mapping, [stream_seed(rep.own_seed, "mapping") for rep in replicas]),
     )
     trained = [STACK_ID, *(replica_id(mid, r) for r, rep in enumerate(replicas) for mid in rep.setup.head_ids)]
     settings = exp.learner_settings()
-    shuffle_seeds = {replica_id(mid, r): module_seed(rep.own_seed + 2, mid) for r, rep in enumerate(replicas) for mid in rep.setup.head_ids}
+    shuffle_seeds = {replica_id(mid, r): shuffle_seed(rep.own_seed, mid) for r, rep in enumerate(replicas) for mid in rep.setup.head_ids}
     batch = ppo.rollout_per_partner * len(first.train)
     env_config = replicated_env_config(first.population.env, first.env_config, [rep.own_seed for rep in replicas], BASE_SEED)
     config = base_ppo_config(ReplicatedGame, env_config, ppo, exp.run, BASE_SEED, batch)

@@ -21,8 +21,8 @@ and hands the learner each agent's moves as `Rollout` segments, in the order RLl
 connector would read them (done episodes as they ended, then the running chunks).
 `MarginalPPOLearner` makes the train batch from them with RLlib's own GAE arithmetic, so the
 batch equals the episode path's row for row and training is unchanged on the bandit, blocks
-and Hanabi (`tests/training/test_batched_env_runner.py`). Metrics are counted as
-`LeanEnvRunner` counts them.
+and Hanabi (`tests/training/test_batched_env_runner.py`, with `LeanEnvRunner`, RLlib's own
+sampling, as the reference). Metrics are counted as `LeanEnvRunner` counts them.
 
 It samples this way when every sub-environment is one of our games (`ReplicatedGame`, or
 `PettingZooMultiAgentEnv` such as a self-play pair's `RLlibGame`) and the module is a
@@ -56,8 +56,8 @@ from ray.rllib.utils.metrics import SAMPLE_TIMER
 from rllib_conv.common.arrays import to_numpy
 from rllib_conv.envs.replicated_game import ReplicatedGame
 from rllib_conv.envs.rllib_adapter import RLLIB_MASK_KEY, RLLIB_OBS_KEY, PettingZooMultiAgentEnv
-from rllib_conv.learners.rollout import Rollout
-from rllib_conv.modules.stacked_multi import StackedEgoMultiRLModule
+from rllib_conv.learners.packed.rollout import Rollout
+from rllib_conv.modules.packed.stacked_multi import StackedEgoMultiRLModule
 from rllib_conv.modules.task_module import TaskModule
 from rllib_conv.training.lean_env_runner import LeanEnvRunner
 

@@ -14,7 +14,7 @@ from rllib_conv.common.run_folders import RL_MODULE_DIR
 from rllib_conv.envs.bandit import CollaborativeBanditEnv
 from rllib_conv.modules.multi import ConventionMultiRLModule
 from rllib_conv.partners.base import Partner
-from rllib_conv.partners.play import play_episodes
+from rllib_conv.partners.episodes import play_episodes
 from rllib_conv.partners.trained import PolicyPartner, load_rl_module
 
 

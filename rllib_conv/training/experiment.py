@@ -15,8 +15,9 @@ from pydantic import Field, model_validator
 from rllib_conv.common import config_files
 from rllib_conv.common.config_files import Strict
 from rllib_conv.common.methods import MethodName, method
-from rllib_conv.common.run_folders import read_trial_config
-from rllib_conv.envs.defaults import FALLBACK_DEFAULTS, GAME_DEFAULTS
+from rllib_conv.common.run_folders import CONFIG_FILE, checkpoints
+from rllib_conv.common.sealed import verify_file
+from rllib_conv.envs.registry import game as game_record
 from rllib_conv.learners.settings import LearnerSettings
 from rllib_conv.training.settings import (
     EnvName,
@@ -55,12 +56,14 @@ class ExperimentConfig(Strict):
         if not method(self.method).regularised and self.lam > 0:
             raise ValueError(f"lam must be 0 for method {self.method!r} (it has no learned task logits to regularise)")
         if not method(self.method).head_penalty and self.head_l2 > 0:
-            raise ValueError(f"head_l2 must be 0 for method {self.method!r} (only modular heads sit on task logits that can take over)")
+            raise ValueError(
+                f"head_l2 must be 0 for method {self.method!r} (only modular heads sit on task logits that can take over)"
+            )
         return self
 
     def resolve(self, game: str) -> "ExperimentConfig":
         """Return a copy for `game` with every unset game-dependent field set to the paper's value."""
-        d = GAME_DEFAULTS.get(game, FALLBACK_DEFAULTS)
+        d = game_record(game).training_defaults().as_dict()
         out = self.model_copy(deep=True)
         out.env = game
         out.model.hidden = out.model.hidden or d["hidden"]
@@ -78,8 +81,23 @@ class ExperimentConfig(Strict):
 
 
 def trial_config(trial: str | Path) -> ExperimentConfig:
-    """The resolved ego config a trained-ego trial folder was run with (its `config.yaml`)."""
-    return ExperimentConfig.model_validate(read_trial_config(trial))
+    """The resolved ego config a trained-ego trial folder was run with (its `config.yaml`).
+
+    ValueError naming the file when it is not what was saved (`common.sealed.verify_file`),
+    not YAML, or not a valid config: a damaged config must not pass for another experiment.
+    """
+    path = Path(trial) / CONFIG_FILE
+    verify_file(path, "trial config")
+    raw = config_files.read_yaml(path, "trial config")
+    return config_files.check({} if raw is None else raw, ExperimentConfig, {}, f"trial config {str(path)!r}")[0]
+
+
+def check_trial(trial: str | Path) -> ExperimentConfig:
+    """A trained-ego trial folder's config (`trial_config`), after checking it has a checkpoint (the pipeline verifies its files)."""
+    exp = trial_config(trial)
+    if not checkpoints(trial):
+        raise ValueError(f"trial {str(trial)!r} has no checkpoint (checkpoint_* folders)")
+    return exp
 
 
 def load(path: str | Path, overrides: list[str] = ()) -> dict[str, Any]:

@@ -1,5 +1,11 @@
 """`LeanEnvRunner`: RLlib's `MultiAgentEnvRunner` with its per-step and per-episode metric logging batched.
 
+It is the base of `BatchedEnvRunner`, the one env runner training uses: the batched loop
+counts its metrics here, and the calls that loop leaves to RLlib (evaluation-style calls:
+`num_episodes`, `explore=False`, random actions) sample through this class. On its own it
+is RLlib's sampling path, the reference `tests/training/test_batched_env_runner.py`
+checks the batched loop against; no config selects it.
+
 RLlib logs four metric values per agent per env step and a dozen per episode, each through
 its `MetricsLogger`; on our short episodes of small games that bookkeeping costs as much as
 sampling itself. This runner keeps the same numbers (env, agent and module steps; episode

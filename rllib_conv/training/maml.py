@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from rllib_conv.modules.stacked_multi import STACK_ID
+from rllib_conv.modules.packed.stacked_multi import STACK_ID
 from rllib_conv.training.weights import Weights, load_weights, push_learner_weights, snapshot
 
 # Every replica's task module and single head: the stacked ego's weights, all of them.

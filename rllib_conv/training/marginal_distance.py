@@ -1,7 +1,8 @@
 """How close a task module is to the true marginals (the paper's marginals figure): the states and the distance.
 
-States: every context on the bandit; on other games with an oracle, the ego's states
-when it plays the oracle policy (uniform over optimal actions) with the training partners.
+States: every state where the game lists them (`GameRecord.states`: the bandit's contexts);
+on other games with an oracle, the ego's states when it plays the oracle policy (uniform
+over optimal actions) with the training partners.
 The distance is the L1 sum between the task module's distribution and the uniform
 distribution over optimal actions, averaged over states with more than one optimal
 action and at least one non-optimal legal action (`paper`), or over all states (`all`).
@@ -14,19 +15,13 @@ from typing import Any
 import numpy as np
 
 from rllib_conv import envs
-from rllib_conv.envs.bandit import CollaborativeBanditEnv
+from rllib_conv.common.seeds import series_seed
 from rllib_conv.envs.oracles import canonical_actions, oracle_for
 from rllib_conv.modules.multi import ConventionMultiRLModule
 from rllib_conv.partners.base import Partner
-from rllib_conv.partners.play import play_episodes
+from rllib_conv.partners.episodes import play_episodes
 from rllib_conv.partners.population import Population
 from rllib_conv.training.evaluate import head_probs, task_probs
-
-
-def bandit_states(env_config: dict[str, Any]) -> tuple[np.ndarray, np.ndarray]:
-    """Every bandit state (one-hot contexts) with all-legal masks."""
-    env = CollaborativeBanditEnv(**env_config)
-    return np.eye(env.num_contexts, dtype=np.float32), np.ones((env.num_contexts, env.num_arms), dtype=np.int8)
 
 
 def merge_actions(values: np.ndarray, canon: np.ndarray) -> np.ndarray:
@@ -94,13 +89,14 @@ class OraclePartner(Partner):
 
 def marginal_states(population: Population, episodes: int = 200, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """The ego's observations and masks on which the marginals are compared (see the module docstring)."""
-    if population.env == "bandit":
-        return bandit_states(population.env_config)
+    listed = envs.game(population.env).states
+    if listed is not None:
+        return listed(population.env_config)
     env = envs.make(population.env, **population.env_config)
     ego_agent = next(a for a in env.possible_agents if a != population.partner_agent)
     oracle = OraclePartner("oracle", population.env, population.env_config, seed)
     for i, entry in enumerate(population.entries("train")):
-        play_episodes(env, {ego_agent: oracle, population.partner_agent: entry.build()}, episodes, seed + 1000 * i)
+        play_episodes(env, {ego_agent: oracle, population.partner_agent: entry.build()}, episodes, series_seed(seed, i))
     obs = np.stack([o for o, _ in oracle.seen]).astype(np.float32)
     mask = np.stack([m for _, m in oracle.seen]).astype(np.int8)
     return obs, mask

@@ -4,7 +4,8 @@ Units that can be replicas of one algorithm (the same `packing_key`) may share a
 bigger packs pay the env-runner and learner overheads fewer times, but a stage needs at
 least as many trials as the cluster has CPUs, or cores idle. `packs` makes packs of at most
 `max_pack` units and of about `total / cpus` units, so a small stage still fills every core;
-`spread_over_cores` then cuts a stage's trials so none is left alone at the end.
+`spread_over_cores` then cuts a stage's trials so none is left alone at the end. The stage
+runner (`stage`) does both for every stage pipeline.
 """
 
 from __future__ import annotations
@@ -13,14 +14,11 @@ import math
 import os
 from collections import defaultdict
 from collections.abc import Callable, Hashable
-from pathlib import Path
 from typing import Any, TypeVar
 
-import pandas as pd
 import ray
 
-from rllib_conv.common.atomic_files import replaced_atomically
-from rllib_conv.training.tuning import init_ray, trial_job
+from rllib_conv.training.tuning import init_ray
 
 T = TypeVar("T")
 
@@ -84,32 +82,3 @@ def cluster_cpus(address: str | None = None) -> int:
     init_ray(address)
     return int(ray.cluster_resources().get("CPU", os.cpu_count() or 1))
 
-
-def write_tables(results: Any, cfgs: list[Any], file: str, columns: list[str], order: list[str], out: Path, what: str) -> dict[str, pd.DataFrame]:
-    """Gather the packs' tables (`file` in each trial folder) of a stage's Tune `results` into one CSV per config; return them by name.
-
-    Every trial's config is a job with the `index` of its config in `cfgs`. A config whose
-    packs all finished gets `out/<name>.csv` (written whole, then moved into place); one with
-    a failed pack gets none, and RuntimeError names them after the others are written.
-    """
-    parts: list[list[pd.DataFrame]] = [[] for _ in cfgs]
-    failed = [0] * len(cfgs)
-    for result in results:
-        index, path = trial_job(result.config)["index"], Path(result.path) / file
-        if result.error or not path.is_file():
-            failed[index] += 1
-        else:
-            parts[index].append(pd.read_csv(path)[columns])
-    out.mkdir(parents=True, exist_ok=True)
-    tables = {}
-    for cfg, frames, errors in zip(cfgs, parts, failed):
-        if errors:  # no CSV: a config's CSV means all its rows are in it
-            continue
-        table = pd.concat(frames, ignore_index=True).sort_values(order, kind="stable", ignore_index=True)
-        with replaced_atomically(out / f"{cfg.name}.csv") as tmp:
-            table.to_csv(tmp, index=False)
-        tables[cfg.name] = table
-    if any(failed):
-        unfinished = [c.name for c, n in zip(cfgs, failed) if n]
-        raise RuntimeError(f"{sum(failed)} {what} pack(s) failed, so {unfinished} wrote no CSV; run again to retry them (finished packs are kept)")
-    return tables

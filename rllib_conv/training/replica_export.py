@@ -22,9 +22,9 @@ import yaml
 from ray.rllib.core.rl_module.multi_rl_module import MultiRLModuleSpec
 
 from rllib_conv.common.run_folders import CHECKPOINT_PREFIX, CONFIG_FILE, EVAL_FILE, PROGRESS_FILES, RL_MODULE_DIR
-from rllib_conv.common.sealed import seal
+from rllib_conv.common.sealed import seal, seal_file
 from rllib_conv.modules.multi import TASK_ID, ConventionMultiRLModule
-from rllib_conv.modules.stacked_multi import STACK_ID
+from rllib_conv.modules.packed.stacked_multi import STACK_ID
 from rllib_conv.training.algorithm import Replica, module_specs
 
 EXPORT_CHECKPOINT = f"{CHECKPOINT_PREFIX}000000"
@@ -58,6 +58,7 @@ def export_replica(plain: ConventionMultiRLModule, replica: Replica, folder: Pat
     staging = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", dir=folder.parent))
     try:
         (staging / CONFIG_FILE).write_text(yaml.safe_dump(replica.setup.exp.model_dump(), sort_keys=False))
+        seal_file(staging / CONFIG_FILE)  # read back only if unchanged (`trial_config`): a damaged config is another experiment
         pd.DataFrame(progress).to_csv(staging / PROGRESS_FILES[0], index=False)
         checkpoint = staging / EXPORT_CHECKPOINT
         plain.save_to_path(checkpoint / RL_MODULE_DIR)

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from rllib_conv.modules.stacked_multi import STACK_ID
+from rllib_conv.modules.packed.stacked_multi import STACK_ID
 
 RNG_FILE = "rng_state.pkl"
 

@@ -8,9 +8,21 @@ the game (`rllib_conv.envs.defaults`).
 
 from __future__ import annotations
 
+import warnings
 from typing import Annotated, Any, Literal
 
-from pydantic import AfterValidator, Field, NonNegativeFloat, NonNegativeInt, PositiveFloat, PositiveInt, model_validator
+from pydantic import (
+    AfterValidator,
+    Field,
+    NonNegativeFloat,
+    NonNegativeInt,
+    PositiveFloat,
+    PositiveInt,
+    ValidationError,
+    ValidatorFunctionWrapHandler,
+    WrapValidator,
+    model_validator,
+)
 
 from rllib_conv.common.config_files import Strict
 from rllib_conv.envs.registry import factory as env_factory
@@ -19,7 +31,7 @@ from rllib_conv.learners.settings import LearnerSettings
 
 def _folder_name(v: str) -> str:
     if not v or any(c in v for c in '/\\<>:"|?* '):
-        raise ValueError(f"must be a non-empty folder name without spaces or /\\<>:\"|?*, got {v!r}")
+        raise ValueError(f'must be a non-empty folder name without spaces or /\\<>:"|?*, got {v!r}')
     return v
 
 
@@ -34,10 +46,29 @@ def _schedule_starts_at_zero(v: Any) -> Any:
     return v
 
 
+def _entropy_in_words(v: Any, handler: ValidatorFunctionWrapHandler) -> Any:
+    """A constant or a schedule; anything else is said in words, not as the types pydantic tried."""
+    try:
+        return handler(v)
+    except ValidationError:
+        raise ValueError(
+            f"expected a number >= 0, or a schedule [[0, value], [step, value], ...] of whole steps >= 0 and values >= 0; got {v!r}"
+        ) from None
+
+
+REMOVED_BATCHED_SAMPLING = (
+    "run.batched_sampling is ignored: it was removed, egos and self-play pairs always sample with "
+    "BatchedEnvRunner (the same train batches as RLlib's episode path); drop the key"
+)
+
 FolderName = Annotated[str, AfterValidator(_folder_name)]
 EnvName = Annotated[str, AfterValidator(_registered_env)]
 # A constant, or a piecewise-linear schedule [[env_step, value], ...] starting at step 0.
-EntropyCoeff = Annotated[NonNegativeFloat | list[tuple[NonNegativeInt, NonNegativeFloat]], AfterValidator(_schedule_starts_at_zero)]
+EntropyCoeff = Annotated[
+    NonNegativeFloat | list[tuple[NonNegativeInt, NonNegativeFloat]],
+    WrapValidator(_entropy_in_words),
+    AfterValidator(_schedule_starts_at_zero),
+]
 
 
 class ModelSettings(Strict):
@@ -75,11 +106,6 @@ class RunSettings(Strict):
     timesteps: PositiveInt | None = None
     num_env_runners: int = Field(0, ge=0)
     num_envs_per_env_runner: PositiveInt = 8
-    # Egos and self-play pairs sample without RLlib's episode objects (`BatchedEnvRunner`):
-    # the same train batches; egos per trial 1.6x faster on the bandit, 2.5x on blocks, 1.1x on
-    # Hanabi (benchmarks/train_throughput.py), self-play pairs 2.0-2.7x
-    # (benchmarks/selfplay_sampling.py); False samples through RLlib's episodes.
-    batched_sampling: bool = True
     restart_failed_sub_environments: bool = False
     # Custom Ray resources each trial asks for: {"second_node": 1} runs it only on nodes
     # started with `ray start --resources '{"second_node": N}'`.
@@ -87,6 +113,17 @@ class RunSettings(Strict):
     checkpoint_every: PositiveInt = 10
     keep_checkpoints: PositiveInt = 2
     eval_episodes: PositiveInt = 200
+
+    @model_validator(mode="before")
+    @classmethod
+    def _removed_keys(cls, data: Any) -> Any:
+        # Trial folders written before 2026-12-05 carry `batched_sampling` in their config.yaml;
+        # they must still load. Sampling is always batched now (the same train batches as RLlib's
+        # episode path, `tests/training/test_batched_env_runner.py`), so the key changes nothing.
+        if isinstance(data, dict) and "batched_sampling" in data:
+            warnings.warn(REMOVED_BATCHED_SAMPLING, FutureWarning, stacklevel=2)
+            data = {k: v for k, v in data.items() if k != "batched_sampling"}
+        return data
 
 
 class MAMLSettings(Strict):

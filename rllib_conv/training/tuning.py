@@ -7,8 +7,6 @@ checkpoint, errored ones are retried. Running the same command again therefore r
 
 from __future__ import annotations
 
-import hashlib
-import json
 import os
 from collections.abc import Sequence
 from pathlib import Path
@@ -23,7 +21,7 @@ from ray.tune.utils import flatten_dict
 
 from rllib_conv.common.atomic_files import write_text_atomically
 from rllib_conv.common.config_files import GRID_KEY
-from rllib_conv.common.run_folders import SPEC_FILE
+from rllib_conv.common.run_folders import SPEC_FILE, spec_digest
 from rllib_conv.common.tracking import LOGGERS
 from rllib_conv.training.callbacks import PROGRESS, KeepLogsAtCheckpoints, TrimRerunResults, restore_checkpointed_logs
 
@@ -124,9 +122,8 @@ def job_units(config: dict[str, Any], key: str) -> int:
 
 
 def spec_name(prefix: str, spec: Any) -> str:
-    """A Tune experiment name for `spec` that only the same spec gets again: `<prefix><12 hex digits>`."""
-    digest = hashlib.sha1(json.dumps(spec, sort_keys=True, default=str).encode()).hexdigest()
-    return f"{prefix}{digest[:12]}"
+    """A Tune experiment name for `spec` that only the same spec gets again: `<prefix><12 hex digits>` (`run_folders.spec_digest`)."""
+    return f"{prefix}{spec_digest(spec)}"
 
 
 def _grid_values(value: Any) -> list[Any]:

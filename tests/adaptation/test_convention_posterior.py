@@ -10,19 +10,20 @@ import pandas as pd
 import pytest
 
 from rllib_conv import envs
+from rllib_conv.adaptation.convention_posterior import ConventionPosterior, PosteriorPlayer
 from rllib_conv.common.run_folders import trial_folders
+from rllib_conv.envs.bandit.keys import bandit_context
 from rllib_conv.envs.blocks import BLUE, HIDDEN, RED, encode_observation
-from rllib_conv.envs.convention_keys import bandit_context, blocks_observation
+from rllib_conv.envs.blocks.keys import blocks_observation
 from rllib_conv.partners.bandit import BanditConventionPartner
 from rllib_conv.partners.blocks import TEST_PERMUTATIONS, TRAIN_PERMUTATIONS, BlocksLeader, PermutationPartner, derangements
+from rllib_conv.partners.episodes import episode_stream
 from rllib_conv.partners.hanabi import RandomLegalPartner
-from rllib_conv.partners.play import episode_stream
 from rllib_conv.partners.population import from_partners
 from rllib_conv.pipelines.adapt import run_adaptation
 from rllib_conv.pipelines.adapt_config import AdaptConfig
 from rllib_conv.pipelines.train import run
 from rllib_conv.training import experiment
-from rllib_conv.training.convention_posterior import ConventionPosterior, PosteriorPlayer
 
 ONE_HOT = np.eye(4, dtype=np.float32)
 ALL_ARMS = np.ones((4, 8), dtype=np.int8)
@@ -166,6 +167,7 @@ def test_untrainable_settings_are_refused() -> None:
         ConventionPosterior([], None)
 
 
+@pytest.mark.slow
 def test_adapting_to_a_training_convention_plays_its_head_after_one_update(bandit_egos, tmp_path) -> None:
     # The new partner is a training partner: its moves in one update of 16 steps identify its convention
     # (whole or context by context), and the ego plays it at once; the fresh head would still play the marginals.
@@ -202,6 +204,7 @@ def narrow_ego(ray_session, tmp_path_factory) -> tuple[str, Path]:
     return str(trial_folders(results[0].path)[0]), folder
 
 
+@pytest.mark.slow
 def test_a_partner_following_no_known_convention_falls_back_to_fine_tuning(narrow_ego, tmp_path) -> None:
     trial, _ = narrow_ego
     common = {"runs": [trial], "split": "test", "steps": 480, "seed": 5}
@@ -225,6 +228,7 @@ def blocks_ego(ray_session, tmp_path_factory) -> str:
     return str(trial_folders(results[0].path)[0])
 
 
+@pytest.mark.slow
 def test_blocks_adaptation_plays_the_best_response_to_a_recombined_convention_after_one_update(blocks_ego, tmp_path) -> None:
     # A test permutation reads each cell as one of the training permutations does. In the first update's 640
     # steps the adapting ego puts red on every cell at move 1, the partner answers, and the plan against the

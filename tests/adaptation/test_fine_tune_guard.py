@@ -7,9 +7,9 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from rllib_conv.adaptation.fine_tune_guard import FineTuneGuard, measured_better
 from rllib_conv.pipelines.adapt import run_adaptation
 from rllib_conv.pipelines.adapt_config import AdaptConfig
-from rllib_conv.training.fine_tune_guard import FineTuneGuard, measured_better
 
 
 def test_measured_better_by_hand() -> None:
@@ -48,6 +48,7 @@ def _curves(raw: dict, tmp_path: Path) -> tuple[pd.DataFrame, pd.DataFrame]:
 
 
 @pytest.mark.parametrize("ppo", [{}, {"entropy_coeff": 1.0, "lr": 0.01}], ids=["fine-tuning-pays", "fine-tuning-hurts"])
+@pytest.mark.slow
 def test_the_guarded_curve_is_the_prior_until_fine_tuning_is_measured_better(bandit_egos, tmp_path, ppo) -> None:
     trial = Path(bandit_egos["bandit-s2-hand"].path)
     common = {"runs": [str(trial)], "partners": ["hand-test-1"], "steps": 240, "seed": 3, "ppo": ppo}

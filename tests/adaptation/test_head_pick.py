@@ -10,12 +10,13 @@ import pytest
 import yaml
 
 from rllib_conv import envs
+from rllib_conv.adaptation.head_pick import pick_head
+from rllib_conv.common.sealed import seal_file
 from rllib_conv.partners.bandit import BanditConventionPartner
 from rllib_conv.partners.blocks import BlocksLeader, PermutationPartner, derangements
-from rllib_conv.partners.play import episode_stream
+from rllib_conv.partners.episodes import episode_stream
 from rllib_conv.pipelines.adapt import adapt_curve, run_adaptation
 from rllib_conv.pipelines.adapt_config import AdaptConfig
-from rllib_conv.training.head_pick import pick_head
 
 PARTNER_ARMS = [0, 1, 2, 3]  # bandit, symmetric 2: contexts 0 and 1 are symmetric (arm c or c + 4)
 
@@ -66,6 +67,7 @@ def test_pick_compares_candidates_on_the_same_blocks_goals() -> None:
     assert pick.steps == 624  # 26 rounds of 4 six-move episodes; a 27th would need 648
 
 
+@pytest.mark.slow
 def test_pick_is_refused_without_per_partner_heads(bandit_egos, tmp_path) -> None:
     with pytest.raises(ValueError, match="method 'scratch' starts from a fresh network"):
         AdaptConfig(runs=["r"], method="scratch", head_init="pick")
@@ -75,10 +77,12 @@ def test_pick_is_refused_without_per_partner_heads(bandit_egos, tmp_path) -> Non
     shutil.copytree(bandit_egos["bandit-s2-hand"].path, trial)
     trained = yaml.safe_load((trial / "config.yaml").read_text())
     (trial / "config.yaml").write_text(yaml.safe_dump({**trained, "method": "agg", "lam": 0.0}))
+    seal_file(trial / "config.yaml")  # edited on purpose: sealed again, as training writes it
     with pytest.raises(ValueError, match="one head per training partner.*'agg'"):
         adapt_curve(AdaptConfig(runs=[str(trial)], head_init="pick"), str(trial), "hand-test-1")
 
 
+@pytest.mark.slow
 def test_adapting_to_a_known_convention_picks_its_head(bandit_egos, tmp_path) -> None:
     # A training partner's convention: its own head scores 1 at once; the fresh head plays the marginals (3/4).
     trial = Path(bandit_egos["bandit-s2-hand"].path)

@@ -15,8 +15,9 @@ PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
 
 def write_trial(experiment: Path, name: str, population: str, lam: float, seed: int, finals: tuple[float, float], distance: float | None = None) -> Path:
-    """A trained-ego trial folder: config.yaml, three iterations of progress.csv with two partners, and eval.json."""
-    trial = experiment / name
+    """A trained ego of Tune trial `name`, `<trial>/seed=<seed>/` as training exports it: config.yaml, three
+    iterations of progress.csv with two partners, and eval.json."""
+    trial = experiment / name / f"seed={seed}"
     trial.mkdir(parents=True)
     (trial / "config.yaml").write_text(
         f"name: {experiment.name}\nenv: bandit\npopulation: {population}\nmethod: modular\nlam: {lam}\nseed: {seed}\nmodel:\n  hidden: 30\n  z_dim: null\nppo:\n  lr: 0.0003\n"
@@ -47,7 +48,7 @@ def sweep(tmp_path: Path) -> Path:
     }
     for i, ((population, lam), per_seed) in enumerate(finals.items()):
         for seed, pair in enumerate(per_seed):
-            write_trial(experiment, f"EgoTrainable_{i}_{seed}", population, lam, seed, pair, distance=0.1 * (i + 1) + 0.02 * seed)
+            write_trial(experiment, f"EgoTrainable_{i}", population, lam, seed, pair, distance=0.1 * (i + 1) + 0.02 * seed)  # seeds: one trial's replicas
     (experiment / "experiment.yaml").write_text("name: my-sweep\n")
     return experiment
 
@@ -61,7 +62,7 @@ def test_a_sweep_gets_learning_curves_and_a_heat_map(sweep: Path) -> None:
 
 
 def test_the_heat_map_holds_the_mean_over_seeds_of_each_final_value(sweep: Path) -> None:
-    summaries = loaders.load_trial_summaries(sorted(p.parent for p in sweep.glob("*/config.yaml")))
+    summaries = loaders.load_trial_summaries(sorted(p.parent for p in sweep.glob("*/seed=*/config.yaml")))
     assert swept_keys(summaries) == ["population", "lam"]  # the seed is replicated, not swept
     table = sweep_table(summaries, "return_mean")
     assert list(table.index) == ["bandit-s2-hand", "bandit-s3-hand"] and list(table.columns) == ["0.0", "0.5"]
@@ -82,10 +83,11 @@ def test_the_heat_map_holds_the_mean_over_seeds_of_each_final_value(sweep: Path)
 def test_a_training_run_over_seeds_gets_learning_curves_only(tmp_path: Path) -> None:
     experiment = tmp_path / "runs" / "train"
     for seed in (0, 1, 2):
-        write_trial(experiment, f"T{seed}", "bandit-s2-hand", 0.5, seed, (0.9, 0.6))
+        write_trial(experiment, "T", "bandit-s2-hand", 0.5, seed, (0.9, 0.6))
     assert plot_folder(experiment) == [experiment / "learning_curves.png"]
     check_png(experiment / "learning_curves.png")
-    assert plot_folder(experiment / "T1") == [experiment / "T1" / "learning_curves.png"]  # one trial folder
+    ego = experiment / "T" / "seed=1"
+    assert plot_folder(ego) == [ego / "learning_curves.png"]  # one trained ego
 
 
 def test_partner_curves_draw_each_partner_per_trial(tmp_path: Path) -> None:

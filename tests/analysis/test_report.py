@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import re
 from pathlib import Path
 
@@ -11,7 +12,21 @@ import pytest
 from analysis.paper import LABEL_NAMES
 from analysis.report import build_report
 from analysis.report.sections.status import trained_steps
-from analysis.report.verdicts import CONTRADICTED, NOT_SHOWN, SUPPORTED, VERDICTS, ClaimCheck, Difference, all_hold
+from analysis.report.verdicts import (
+    CONTRADICTED,
+    NOT_SHOWN,
+    SUPPORTED,
+    VERDICTS,
+    ClaimCheck,
+    Comparison,
+    Difference,
+    Judgement,
+    all_hold,
+    beats_all,
+    beats_every,
+    no_worse,
+    no_worse_margin,
+)
 from analysis.summaries import bayes_optimal_return
 
 FIXTURE = Path(__file__).parent / "fixtures" / "repro"
@@ -31,7 +46,15 @@ def text(report: Path) -> str:
 def test_report_and_every_linked_figure_exist(report: Path, text: str) -> None:
     assert report.name == "report.md" and report.is_file()
     links = re.findall(r"\]\((figures/[^)]+\.png)\)", text)
-    assert {Path(x).stem for x in links} >= {"adapt_armsexp", "zeroshot", "marginals", "userstudy", "training_bandit", "selfplay", "crossplay_bandit-s2-hand__bandit-s2-hand"}
+    assert {Path(x).stem for x in links} >= {
+        "adapt_armsexp",
+        "zeroshot",
+        "marginals",
+        "userstudy",
+        "training_bandit",
+        "selfplay",
+        "crossplay_bandit-s2-hand__bandit-s2-hand",
+    }
     for link in links:
         png = report.parent / link
         assert png.read_bytes()[:8] == PNG_MAGIC
@@ -47,7 +70,9 @@ def test_every_figure_with_a_band_says_what_the_band_is(text: str) -> None:
         assert "n = 1 seed per method; no band where n = 1" in caption(name), name  # the fixture has one seed
     assert "(each seed averaged over its test partners first)" in caption("adapt_armsexp")
     assert "standard error of the share over the pairs (n = 23 pairs)" in caption("userstudy")
-    assert "the replicated unit is the training seed" in text and "A hierarchical bootstrap is not used" in text  # the header says which interval
+    assert (
+        "the replicated unit is the training seed" in text and "A hierarchical bootstrap is not used" in text
+    )  # the header says which interval
 
 
 def test_status_names_the_env_steps_each_ego_trained_for(text: str) -> None:
@@ -70,9 +95,16 @@ def test_zeroshot_numbers_and_flags(text: str) -> None:
 
 def test_adaptation_auc_row(text: str) -> None:
     # Exact returns at steps 0, 16, 32, 48, 64: 0.4647, 0.5509, 0.6729, 0.7732, 0.8366 -> AUC 0.660.
-    assert "| Arms 2 | ours λ=0.5 | 5 | 64 | 1 | 0.465 (n=1, no interval) | 0.837 (n=1, no interval) | 0.660 (n=1, no interval) | exact |" in text
-    # BaselineAgg: 0.7218, 0.8645, 0.7068, 0.8681, 0.9621 -> 0.8247; 0.6597 - 0.8247 = -0.165 on one seed: not shown.
-    assert "| Arms 2 | not shown | AUC ours λ=0.5 − BaselineAgg -0.165 (n=1, no interval) |" in text
+    assert (
+        "| Arms 2 | ours λ=0.5 | 5 | 64 | 1 | 0.465 (n=1, no interval) | 0.837 (n=1, no interval) | 0.660 (n=1, no interval) | exact |"
+        in text
+    )
+    # BaselineAgg: 0.7218, 0.8645, 0.7068, 0.8681, 0.9621 -> 0.8247; 0.6597 - 0.8247 = -0.165 on one seed: not shown,
+    # and the fixture has neither BaselineModular nor MAML, which the claim names.
+    assert (
+        "| Arms 2 | not shown (missing: BaselineModular, First-Order MAML) | AUC ours λ=0.5 − BaselineAgg -0.165 (n=1, no interval) |"
+        in text
+    )
 
 
 @pytest.mark.parametrize(
@@ -91,16 +123,81 @@ def test_a_claim_is_supported_only_when_the_whole_interval_is_above_zero(lo, hi,
 
 
 @pytest.mark.parametrize(
-    ("verdicts", "overall"),
+    ("verdicts", "missing", "overall"),
     [
-        ([SUPPORTED, SUPPORTED], SUPPORTED),
-        ([SUPPORTED, NOT_SHOWN], NOT_SHOWN),
-        ([NOT_SHOWN, CONTRADICTED, SUPPORTED], CONTRADICTED),
-        ([], NOT_SHOWN),
+        ([SUPPORTED, SUPPORTED], (), SUPPORTED),
+        ([SUPPORTED, NOT_SHOWN], (), NOT_SHOWN),
+        ([NOT_SHOWN, CONTRADICTED, SUPPORTED], (), CONTRADICTED),
+        ([], (), NOT_SHOWN),
+        ([SUPPORTED], ("BaselineModular", "First-Order MAML"), NOT_SHOWN),  # the Hanabi 5-seed report: BaselineAgg alone
+        ([SUPPORTED, CONTRADICTED], ("First-Order MAML",), CONTRADICTED),  # one loss refutes "beats every one"
+        ([], ("BaselineAgg",), NOT_SHOWN),
     ],
 )
-def test_a_beats_every_b_needs_every_difference(verdicts, overall) -> None:
-    assert all_hold(verdicts) == overall
+def test_a_beats_every_b_needs_every_difference_and_every_b(verdicts, missing, overall) -> None:
+    assert all_hold(verdicts, missing) == overall
+
+
+@pytest.mark.parametrize(
+    ("lo", "hi", "margin", "verdict"),
+    [
+        (-0.15, 0.30, 0.2, SUPPORTED),  # holds 0, but no lower than -margin
+        (-0.50, 0.30, 0.2, NOT_SHOWN),  # holds 0 and reaches below -margin: the case the old rule called supported
+        (-0.50, 0.30, 0.0, NOT_SHOWN),
+        (0.01, 0.30, 0.0, SUPPORTED),  # margin 0: "no worse" is "above"
+        (-0.50, -0.25, 0.2, CONTRADICTED),  # worse by more than the margin, wholly
+        (-0.50, -0.10, 0.2, NOT_SHOWN),  # worse, but maybe by less than the margin
+        (-0.20, 0.10, 0.2, NOT_SHOWN),  # touching -margin is not above it
+        (float("nan"), float("nan"), 0.2, NOT_SHOWN),  # one seed
+        (-0.10, 0.10, float("nan"), NOT_SHOWN),  # no margin known (a game without a maximum score)
+    ],
+)
+def test_no_worse_is_judged_against_the_declared_margin(lo, hi, margin, verdict) -> None:
+    assert no_worse(Difference("A", "B", 0.0, lo, hi, 3), margin) == verdict
+
+
+def test_a_negative_margin_is_an_error() -> None:
+    with pytest.raises(ValueError, match="no_worse_margin"):
+        no_worse(Difference("A", "B", 0.0, -0.1, 0.1, 3), -0.2)
+
+
+@pytest.mark.parametrize(
+    ("plan", "margin"),
+    [
+        ({"game": "blocks", "no_worse_margin": 0.5}, 0.5),  # declared in the plan
+        ({"game": "blocks", "no_worse_margin": 0}, 0.0),
+        ({"game": "blocks"}, 0.2),  # default: 1% of 20
+        ({"game": "hanabi"}, 0.05),
+        ({"game": "bandit", "report": {"max_score": 3.0}}, 0.03),  # the game's own maximum, from plan.json
+    ],
+)
+def test_the_no_worse_margin_comes_from_the_plan_or_the_games_maximum(plan, margin) -> None:
+    assert no_worse_margin(plan) == pytest.approx(margin)
+    assert math.isnan(no_worse_margin({"game": "unknown-game"}))
+
+
+def test_beats_every_names_what_is_missing() -> None:
+    # Two seeds x one partner: A is 1.0 above B on both seeds; C was never run.
+    df = pd.DataFrame(
+        [
+            {"label": lab, "seed": s, "partner": "p", "auc": v + s}
+            for s in (0, 1)
+            for lab, v in (("modular-lam0.5", 2.0), ("agg", 1.0))
+        ]
+    )
+    found = beats_every(df, "modular-lam0.5", ("agg", "maml"), "auc", ("partner",))
+    assert (found.verdict, found.missing) == (NOT_SHOWN, ("First-Order MAML",))
+    assert found.cell == "not shown (missing: First-Order MAML)"
+    assert found.evidence == "ours λ=0.5 − BaselineAgg +1.000 [+1.000, +1.000] (n=2)"
+    assert beats_every(df, "modular-lam0.5", ("agg",), "auc", ("partner",)).cell == SUPPORTED
+    assert beats_every(df, "maml", ("agg",), "auc", ("partner",)) == Judgement(
+        NOT_SHOWN, "nothing to compare", ("First-Order MAML",)
+    )
+    # The tuple form keeps a plain verdict and names the missing in its evidence.
+    assert beats_all(df, "modular-lam0.5", ("agg", "maml"), "auc", ("partner",)) == (
+        NOT_SHOWN,
+        "missing: First-Order MAML; " + found.evidence,
+    )
 
 
 def test_a_claim_gets_one_of_three_verdicts() -> None:
@@ -171,7 +268,11 @@ def test_methods_beyond_the_paper_are_listed_but_left_out_of_its_claims(tmp_path
     header = "run,env,env_config,population,method,lam,z_dim,seed,distance,distance_all_states,states,experiment"
     rows = [header]
     # Ours 0.10, BaselineAgg 1.0, ours with the head penalty 0.02: the closest, but not a method of the paper.
-    for label, method, distance in (("modular-lam0.5", "modular", 0.10), ("agg", "agg", 1.0), ("modular-lam0.5-hl0.01", "modular", 0.02)):
+    for label, method, distance in (
+        ("modular-lam0.5", "modular", 0.10),
+        ("agg", "agg", 1.0),
+        ("modular-lam0.5-hl0.01", "modular", 0.02),
+    ):
         for s in range(3):
             exp = f"blocks-perm__{label}"
             rows.append(f"runs/{exp}/T{s},blocks,{{}},blocks-perm,{method},0.5,80,{s},{distance},{distance},10,{exp}")
@@ -180,7 +281,11 @@ def test_methods_beyond_the_paper_are_listed_but_left_out_of_its_claims(tmp_path
     assert "| Blocks (hand-designed) | ours λ=0.5 + head penalty | — | 0.020 [0.020, 0.020] (n=3) |" in text
     # Distances paired on the seed: BaselineAgg - ours = 0.9 on each of the 3 seeds.
     assert "| Blocks (hand-designed) | supported | distance BaselineAgg − ours λ=0.5 +0.900 [+0.900, +0.900] (n=3) |" in text
-    assert "| Blocks (hand-designed) | ours λ=0.5 + head penalty | supported | BaselineAgg − ours λ=0.5 + head penalty +0.980 [+0.980, +0.980] (n=3) |" in text
+    # The variant is judged against every baseline with a task output: First-Order MAML was not run, so not shown.
+    assert (
+        "| Blocks (hand-designed) | ours λ=0.5 + head penalty | not shown (missing: First-Order MAML) | "
+        "BaselineAgg − ours λ=0.5 + head penalty +0.980 [+0.980, +0.980] (n=3) |"
+    ) in text
     assert "ours λ=0.5 + head penalty (`modular-lam0.5-hl0.01`) is not in the paper" in text
 
 
@@ -190,18 +295,36 @@ def test_extensions_are_judged_against_the_baselines_apart_from_the_papers_claim
     (game / "plan.json").write_text('{"game": "blocks", "seeds": [0, 1, 2], "quick": false}')
     # Flat curves (AUC = the return), three seeds x two partners per method: value - 0.1 with sp06, value + 0.1 with sp07,
     # so each seed's mean is the value and every interval has zero width.
-    methods = (("modular-lam0.5", "modular", 14.5), ("agg", "agg", 15.0), ("oracle", "oracle", 15.5), ("modular-lam0.5-pick", "modular", 16.0))
+    methods = (
+        ("modular-lam0.5", "modular", 14.5),
+        ("agg", "agg", 15.0),
+        ("oracle", "oracle", 15.5),
+        ("modular-lam0.5-pick", "modular", 16.0),
+    )
     for label, method, value in methods:
         rows = ["run,method,lam,z_dim,seed,partner,steps,mean_return,stderr,exact_return"]
         for i in range(6):
             r = value + (0.1 if i % 2 else -0.1)
-            rows += [f"runs/blocks-selfplay__{label}/T{i // 2},{method},0.5,80,{i // 2},sp0{6 + i % 2},{step},{r},0.1," for step in (0, 640)]
+            rows += [
+                f"runs/blocks-selfplay__{label}/T{i // 2},{method},0.5,80,{i // 2},sp0{6 + i % 2},{step},{r},0.1,"
+                for step in (0, 640)
+            ]
         (game / "adaptation" / f"blocks-selfplay__{label}.csv").write_text("\n".join(rows) + "\n")
     text = build_report(tmp_path / "repro", tmp_path / "out").read_text()
-    assert "| Blocks (self-play) | contradicted | AUC ours λ=0.5 − BaselineAgg -0.50 [-0.50, -0.50] (n=3) |" in text
-    assert "| Blocks (self-play) | ours λ=0.5, adapting from a picked head | supported | ours λ=0.5, adapting from a picked head − BaselineAgg +1.00 [+1.00, +1.00] (n=3) |" in text
+    # Losing to one baseline refutes "beats all three" whatever is missing; winning against the one present shows nothing.
+    assert (
+        "| Blocks (self-play) | contradicted (missing: BaselineModular, First-Order MAML) | AUC ours λ=0.5 − BaselineAgg -0.50 [-0.50, -0.50] (n=3) |"
+        in text
+    )
+    assert (
+        "| Blocks (self-play) | ours λ=0.5, adapting from a picked head | not shown (missing: BaselineModular, First-Order MAML) | "
+        "ours λ=0.5, adapting from a picked head − BaselineAgg +1.00 [+1.00, +1.00] (n=3) |"
+    ) in text
     # The oracle claim is about the paper's methods: the picked-head variant above it does not count.
-    assert "| Blocks (self-play) | supported | AUC oracle marginals − ours λ=0.5 +1.00 [+1.00, +1.00] (n=3); oracle marginals − BaselineAgg +0.50 [+0.50, +0.50] (n=3) |" in text
+    assert (
+        "| Blocks (self-play) | supported | AUC oracle marginals − ours λ=0.5 +1.00 [+1.00, +1.00] (n=3); oracle marginals − BaselineAgg +0.50 [+0.50, +0.50] (n=3) |"
+        in text
+    )
     assert "(`modular-lam0.5-pick`) is not in the paper" in text
     assert "| Blocks (self-play) | BaselineAgg | 2 | 640 | 2 | 15.00 [15.00, 15.00] (n=3) |" in text  # 2 test partners, 3 seeds
 
@@ -229,7 +352,10 @@ def write_bandit_adaptation(root: Path) -> None:
         for seed, (level, offset) in enumerate(zip(levels, offsets)):
             for k, spread in enumerate((-0.01, 0.01)):
                 v = level + offset + spread
-                rows += [f"runs/{population}__{label}/T{seed},{method},0.5,30,{seed},hand-test-{k},{step},{v},0.01,{v}" for step in (0, 16)]
+                rows += [
+                    f"runs/{population}__{label}/T{seed},{method},0.5,30,{seed},hand-test-{k},{step},{v},0.01,{v}"
+                    for step in (0, 16)
+                ]
         (game / "adaptation" / f"{population}__{label}.csv").write_text("\n".join(rows) + "\n")
 
 
@@ -237,19 +363,29 @@ def test_adaptation_claims_are_paired_over_seeds_on_the_papers_method(tmp_path: 
     write_bandit_adaptation(tmp_path / "repro")
     text = build_report(tmp_path / "repro", tmp_path / "out").read_text()
     # Seed-level AUC of ours: seed means 0.72, 0.82, 0.92 -> 0.820, half-width 4.3027 * 0.1 / sqrt(3) = 0.2484.
-    assert "| Arms 2 | ours λ=0.5 | 2 | 16 | 2 | 0.820 [0.572, 1.068] (n=3) | 0.820 [0.572, 1.068] (n=3) | 0.820 [0.572, 1.068] (n=3) | exact |" in text
+    assert (
+        "| Arms 2 | ours λ=0.5 | 2 | 16 | 2 | 0.820 [0.572, 1.068] (n=3) | 0.820 [0.572, 1.068] (n=3) | 0.820 [0.572, 1.068] (n=3) | exact |"
+        in text
+    )
     # Ours - BaselineAgg: +0.02 on every unit (supported although the seed-level intervals overlap widely);
     # ours - MAML by seed +0.05, -0.01, +0.02: mean 0.02, sd 0.03, half-width 4.3027 * 0.03 / sqrt(3) = 0.0745: not shown.
+    # BaselineModular was not run: the claim names it, so it is not shown whatever the other two say.
     assert (
-        "| Arms 2 | not shown | AUC ours λ=0.5 − BaselineAgg +0.020 [+0.020, +0.020] (n=3); "
+        "| Arms 2 | not shown (missing: BaselineModular) | AUC ours λ=0.5 − BaselineAgg +0.020 [+0.020, +0.020] (n=3); "
         "ours λ=0.5 − First-Order MAML +0.020 [-0.055, +0.095] (n=3) |"
     ) in text
-    # λ=0.3 beats both baselines but is a variant: it has its own table and does not make the paper's claim supported.
-    assert "| Arms 2 | ours λ=0.3 | supported | ours λ=0.3 − BaselineAgg +0.100 [+0.100, +0.100] (n=3); ours λ=0.3 − First-Order MAML +0.100" in text
-    assert "| Arms 3 | not shown | needs ours λ=0.5 and a baseline; have ours λ=0.5 |" in text
+    # λ=0.3 beats both baselines present but is a variant: it has its own table, does not make the paper's claim supported,
+    # and is not shown either, BaselineModular being missing.
+    assert (
+        "| Arms 2 | ours λ=0.3 | not shown (missing: BaselineModular) | ours λ=0.3 − BaselineAgg +0.100 [+0.100, +0.100] (n=3); ours λ=0.3 − First-Order MAML +0.100"
+        in text
+    )
+    assert "| Arms 3 | not shown (missing: BaselineAgg, BaselineModular, First-Order MAML) | AUC nothing to compare |" in text
     # Arms 2 against Arms 3 share no partners: Welch over seed means 0.72, 0.82, 0.92 and 0.62, 0.72, 0.82:
-    # difference 0.10, se sqrt(2 * 0.01 / 3) = 0.0816, df 4, t 2.7764 -> half-width 0.2267.
-    assert "| ours λ=0.5, hand partners | not shown | AUC Arms 2 − Arms 3 +0.100 [-0.127, +0.327] (n=3) |" in text
+    # difference 0.10, se sqrt(2 * 0.01 / 3) = 0.0816, df 4, t 2.7764 -> half-width 0.2267. Arms 4 (named by the claim) is absent.
+    assert (
+        "| ours λ=0.5, hand partners | not shown (missing: Arms 4) | AUC Arms 2 − Arms 3 +0.100 [-0.127, +0.327] (n=3) |" in text
+    )
     summary = text.split("## Where ours differs from the paper, and why")[1].split("## Adapting")[0]
     # The three above, not shown, and the user study's two claims, supported: the tallies count exactly the verdicts.
     assert "Claims checked: 5 (2 supported, 3 not shown, 0 contradicted)" in summary
@@ -272,12 +408,17 @@ def test_the_convention_posterior_is_judged_against_its_own_targets(tmp_path: Pa
             for k in range(2):
                 for step in (0, 16):
                     v = bayes_optimal_return(4, symmetric, step) + offset
-                    rows.append(f"runs/{population}__beyond-posterior/T{seed},modular,0.5,30,{seed},hand-test-{k},{step},{v},0.01,{v}")
+                    rows.append(
+                        f"runs/{population}__beyond-posterior/T{seed},modular,0.5,30,{seed},hand-test-{k},{step},{v},0.01,{v}"
+                    )
         (game / "adaptation" / f"{population}__beyond-posterior.csv").write_text("\n".join(rows) + "\n")
     text = build_report(tmp_path / "repro", tmp_path / "out").read_text()
     beyond = text.split("## Beyond the paper: the convention-posterior adapter")[1]
     name = "convention posterior (beyond the paper)"
-    assert f"| Arms 2 | {name} | AUC within 0.01 of the Bayes-optimal adapter | supported | {name} − Bayes-optimal (0.874) +0.000 [+0.000, +0.000] (n=3) |" in beyond
+    assert (
+        f"| Arms 2 | {name} | AUC within 0.01 of the Bayes-optimal adapter | supported | {name} − Bayes-optimal (0.874) +0.000 [+0.000, +0.000] (n=3) |"
+        in beyond
+    )
     assert f"| Arms 3 | {name} | AUC within 0.01 of the Bayes-optimal adapter | contradicted | {name} − Bayes-optimal" in beyond
     assert "![beyond_posterior](figures/beyond_posterior.png)" in beyond
     assert "beyond-guarded" not in beyond  # not run here
@@ -291,14 +432,21 @@ def test_both_adapters_beyond_the_paper_are_judged_on_hanabi(tmp_path: Path) -> 
     (game / "plan.json").write_text('{"game": "hanabi", "seeds": [0, 1, 2], "quick": false}')
     # Flat curves over steps 0 and 640 (AUC = the value), two partners at value -/+ 0.1: each seed's mean is the value.
     # Ours 3.6 + 0.01 * seed, BaselineAgg 3.5, the posterior as ours, the guarded posterior 3.75 on every seed.
-    values = {"modular-lam0.5": lambda s: 3.6 + 0.01 * s, "agg": lambda s: 3.5, "beyond-posterior": lambda s: 3.6 + 0.01 * s, "beyond-guarded": lambda s: 3.75}
+    values = {
+        "modular-lam0.5": lambda s: 3.6 + 0.01 * s,
+        "agg": lambda s: 3.5,
+        "beyond-posterior": lambda s: 3.6 + 0.01 * s,
+        "beyond-guarded": lambda s: 3.75,
+    }
     methods = {"modular-lam0.5": "modular", "agg": "agg", "beyond-posterior": "modular", "beyond-guarded": "modular"}
     for label, value in values.items():
         rows = ["run,method,lam,z_dim,seed,partner,steps,mean_return,stderr,exact_return"]
         for seed in range(3):
             for k, shift in ((6, -0.1), (7, 0.1)):
                 for step in (0, 640):
-                    rows.append(f"runs/hanabi-selfplay__{label}/T{seed},{methods[label]},0.5,500,{seed},sp0{k},{step},{value(seed) + shift},0.01,")
+                    rows.append(
+                        f"runs/hanabi-selfplay__{label}/T{seed},{methods[label]},0.5,500,{seed},sp0{k},{step},{value(seed) + shift},0.01,"
+                    )
         (game / "adaptation" / f"hanabi-selfplay__{label}.csv").write_text("\n".join(rows) + "\n")
     text = build_report(tmp_path / "repro", tmp_path / "out").read_text()
     beyond = text.split("## Beyond the paper: the convention-posterior adapter")[1]
@@ -349,9 +497,18 @@ def test_hanabi_is_judged_against_every_baseline_present(tmp_path: Path) -> None
     (game / "adaptation").mkdir(parents=True)
     (game / "plan.json").write_text('{"game": "hanabi", "seeds": [0, 1], "quick": false}')
     # Two seeds x one partner, flat curves: ours 3.0 and 3.2, each baseline 1.0 lower on both seeds.
-    for label, method, drop in (("modular-lam0.5", "modular", 0.0), ("agg", "agg", 1.0), ("no_task_logits", "no_task_logits", 1.0), ("maml", "maml", 1.0)):
+    for label, method, drop in (
+        ("modular-lam0.5", "modular", 0.0),
+        ("agg", "agg", 1.0),
+        ("no_task_logits", "no_task_logits", 1.0),
+        ("maml", "maml", 1.0),
+    ):
         rows = ["run,method,lam,z_dim,seed,partner,steps,mean_return,stderr,exact_return"]
-        rows += [f"runs/hanabi-selfplay__{label}/T{s},{method},0.5,,{s},sp04,{step},{3.0 + 0.2 * s - drop},0.1," for s in (0, 1) for step in (0, 1280)]
+        rows += [
+            f"runs/hanabi-selfplay__{label}/T{s},{method},0.5,,{s},sp04,{step},{3.0 + 0.2 * s - drop},0.1,"
+            for s in (0, 1)
+            for step in (0, 1280)
+        ]
         (game / "adaptation" / f"hanabi-selfplay__{label}.csv").write_text("\n".join(rows) + "\n")
     text = build_report(tmp_path / "repro", tmp_path / "out").read_text()
     assert (
@@ -359,3 +516,107 @@ def test_hanabi_is_judged_against_every_baseline_present(tmp_path: Path) -> None
         "ours λ=0.5 − BaselineModular +1.000 [+1.000, +1.000] (n=2); ours λ=0.5 − First-Order MAML +1.000 [+1.000, +1.000] (n=2) |"
     ) in text
     assert "![adapt_blockshanabiexp](figures/adapt_blockshanabiexp.png)" in text
+
+
+def write_flat_curves(game_dir: Path, population: str, values: dict[str, float], seeds: int = 3, plan: str = "") -> None:
+    """Flat adaptation curves (AUC = the value) of `population`: per label a value, + 0.1 * seed, two partners at -/+ 0.1.
+
+    Every label's seed means are value + 0.1 * seed, so each paired difference is the same on every seed (zero width).
+    `plan` adds keys to plan.json (e.g. `"no_worse_margin": 0.5`).
+    """
+    (game_dir / "adaptation").mkdir(parents=True, exist_ok=True)
+    game = game_dir.name
+    extra = f", {plan}" if plan else ""
+    (game_dir / "plan.json").write_text(f'{{"game": "{game}", "seeds": {list(range(seeds))}, "quick": false{extra}}}')
+    for label, value in values.items():
+        method = label if label in ("agg", "maml", "no_task_logits") else "modular"
+        rows = ["run,method,lam,z_dim,seed,partner,steps,mean_return,stderr,exact_return"]
+        for seed in range(seeds):
+            for k, shift in ((6, -0.1), (7, 0.1)):
+                rows += [
+                    f"runs/{population}__{label}/T{seed},{method},0.5,,{seed},sp0{k},{step},{value + 0.1 * seed + shift},0.01,"
+                    for step in (0, 640)
+                ]
+        (game_dir / "adaptation" / f"{population}__{label}.csv").write_text("\n".join(rows) + "\n")
+
+
+def test_a_claim_over_three_baselines_with_two_missing_is_not_shown(tmp_path: Path) -> None:
+    # The Hanabi 5-seed report's case: ours and BaselineAgg alone, ours 0.175 above it on every seed.
+    write_flat_curves(tmp_path / "repro" / "hanabi", "hanabi-selfplay", {"modular-lam0.5": 3.624, "agg": 3.449}, seeds=5)
+    text = build_report(tmp_path / "repro", tmp_path / "out").read_text()
+    assert (
+        "| Hanabi (self-play) | not shown (missing: BaselineModular, First-Order MAML) | AUC ours λ=0.5 − BaselineAgg +0.175 [+0.175, +0.175] (n=5) |"
+        in text
+    )
+    summary = text.split("## Where ours differs from the paper, and why")[1].split("## Adapting")[0]
+    assert "Claims checked: 3 (2 supported, 1 not shown, 0 contradicted)" in summary  # with the user study's two
+    assert "ours λ=0.5 − BaselineAgg +0.175 [+0.175, +0.175] (n=5); missing: BaselineModular, First-Order MAML. Why:" in summary
+
+
+def test_a_claim_with_the_first_baseline_missing_is_not_shown(tmp_path: Path) -> None:
+    # The Hanabi 5-seed baselines report's case: BaselineModular and MAML, no BaselineAgg.
+    write_flat_curves(
+        tmp_path / "repro" / "hanabi", "hanabi-selfplay", {"modular-lam0.5": 3.6, "no_task_logits": 2.8, "maml": 3.4}, seeds=5
+    )
+    text = build_report(tmp_path / "repro", tmp_path / "out").read_text()
+    assert (
+        "| Hanabi (self-play) | not shown (missing: BaselineAgg) | AUC ours λ=0.5 − BaselineModular +0.800 [+0.800, +0.800] (n=5); "
+        in text
+    )
+
+
+def test_no_worse_uses_the_margin_the_plan_declares(tmp_path: Path) -> None:
+    # Blocks, hand-designed partners: the posterior − ours is -0.5, 0.0, +0.5 by seed (mean 0, sd 0.5,
+    # half-width 4.3027 * 0.5 / sqrt(3) = 1.242): an interval that holds 0 and reaches -1.24.
+    def write(root: Path, plan: str) -> str:
+        game = root / "blocks"
+        write_flat_curves(game, "blocks-perm", {"modular-lam0.5": 18.0}, plan=plan)
+        rows = ["run,method,lam,z_dim,seed,partner,steps,mean_return,stderr,exact_return"]
+        for seed, offset in enumerate((-0.5, 0.0, 0.5)):
+            for k, shift in ((6, -0.1), (7, 0.1)):
+                rows += [
+                    f"runs/blocks-perm__beyond-posterior/T{seed},modular,0.5,,{seed},sp0{k},{step},{18.0 + 0.1 * seed + offset + shift},0.01,"
+                    for step in (0, 640)
+                ]
+        (game / "adaptation" / "blocks-perm__beyond-posterior.csv").write_text("\n".join(rows) + "\n")
+        return build_report(root, root / "out").read_text().split("### Targets")[1]
+
+    name = "convention posterior (beyond the paper)"
+    evidence = f"{name} − ours λ=0.5 +0.00 [-1.24, +1.24] (n=3)"
+    # The default margin, 1% of 20: -1.24 is below -0.2, so "no worse" is not shown (the old rule said supported).
+    assert (
+        f"| Blocks (hand-designed) | {name} | no worse than ours λ=0.5 by more than 0.2 (the plan's margin) | not shown | {evidence} |"
+        in write(tmp_path / "a", "")
+    )
+    # A margin of 1.5 declared in the plan: the whole interval is above -1.5.
+    assert (
+        f"| Blocks (hand-designed) | {name} | no worse than ours λ=0.5 by more than 1.5 (the plan's margin) | supported | {evidence} |"
+        in write(tmp_path / "b", '"no_worse_margin": 1.5')
+    )
+
+
+def test_a_target_over_two_methods_with_one_missing_is_not_shown(tmp_path: Path) -> None:
+    # Hanabi: the guarded posterior is 0.3 above ours on every seed, but BaselineAgg (named by the target) was not run.
+    write_flat_curves(tmp_path / "repro" / "hanabi", "hanabi-selfplay", {"modular-lam0.5": 3.6, "beyond-guarded": 3.9})
+    beyond = build_report(tmp_path / "repro", tmp_path / "out").read_text().split("### Targets")[1]
+    guarded = "guarded convention posterior (beyond the paper)"
+    assert (
+        f"| Hanabi (self-play) | {guarded} | above ours λ=0.5 and BaselineAgg | not shown (missing: BaselineAgg) | {guarded} − ours λ=0.5 +0.300 [+0.300, +0.300] (n=3) |"
+        in beyond
+    )
+
+
+@pytest.mark.parametrize(
+    ("mean", "lo", "hi", "n", "status", "verdict"),
+    [
+        (0.88, 0.86, 0.90, 3, "inside", "paper inside our 95% CI"),
+        (0.80, 0.78, 0.886, 3, "inside", "paper inside our 95% CI"),  # 0.89 printed: widened by 0.005, 0.886 + 0.005 reaches it
+        (0.80, 0.78, 0.88, 3, "outside", "**differs**: ours lower by 0.090"),
+        (0.95, float("nan"), float("nan"), 1, "no interval", "close (one seed): ours higher by 0.060"),
+        (0.70, float("nan"), float("nan"), 1, "no interval", "**differs** (one seed): ours lower by 0.190"),  # more than 0.1 away
+        (float("nan"), float("nan"), float("nan"), 0, "not run", "not run"),
+    ],
+)
+def test_a_paper_number_against_ours_known_answers(mean, lo, hi, n, status, verdict) -> None:
+    c = Comparison("zero-shot", "Arms 2, ours", 0.89, "src", mean, lo, hi, n)
+    assert (c.status, c.verdict) == (status, verdict)

@@ -9,11 +9,11 @@ import pytest
 
 from rllib_conv import envs
 from rllib_conv.envs.blocks import GOALS, NUM_ACTIONS, PASS
-from rllib_conv.envs.blocks_best_response import BlocksBestResponse, all_grids
-from rllib_conv.envs.convention_keys import blocks_observation
+from rllib_conv.envs.blocks.best_response import BlocksBestResponse, all_grids
+from rllib_conv.envs.blocks.keys import blocks_observation
 from rllib_conv.partners.base import Partner
 from rllib_conv.partners.blocks import TEST_PERMUTATIONS, TRAIN_PERMUTATIONS, PermutationPartner
-from rllib_conv.partners.play import episode_stream
+from rllib_conv.partners.episodes import episode_stream
 
 PLANNER = BlocksBestResponse()
 

@@ -21,6 +21,7 @@ def test_an_import_path_names_a_game() -> None:
         envs.make("no_such_module:X")
 
 
+@pytest.mark.slow
 def test_a_population_of_an_import_path_game_trains_through_tune(ray_session, tmp_path) -> None:
     # The Tune trial runs in another process, where nothing was `register`ed: the name alone must do.
     pop = partners.get("bandit-s1-hand").model_copy(update={"name": "by-path", "env": PATH})

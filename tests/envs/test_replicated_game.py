@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rllib_conv.envs.replicated_game import ReplicatedGame, mix, replicated_env_config, split_agent
+from rllib_conv.common.seeds import game_seed
+from rllib_conv.envs.replicated_game import ReplicatedGame, replicated_env_config, split_agent
 
 
 def replicated(game: str, seeds: list[int], **game_config) -> ReplicatedGame:
@@ -57,7 +58,7 @@ def test_other_replicas_see_other_games() -> None:
             contexts[r].append(int(np.argmax(obs[f"player_0#{r}"]["observations"])))
         env.step(first_mover_actions(obs))
     assert contexts[0] != contexts[1] != contexts[2]
-    assert mix(3, 4) != mix(4, 3)
+    assert game_seed(3, 4) != game_seed(4, 3)
 
 
 def test_an_episode_ends_when_every_copy_has_ended() -> None:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 import torch
 
-from rllib_conv.learners.fused_step import FusedAdamStep, clip_segments, clip_segments_per_tensor
+from rllib_conv.learners.packed.fused_step import FusedAdamStep, clip_segments, clip_segments_per_tensor
 
 
 def _grads(shapes: list[tuple[int, ...]], step: int) -> list[torch.Tensor]:

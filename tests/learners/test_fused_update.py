@@ -1,20 +1,24 @@
-"""The learner's own minibatch loop gives RLlib's weights: same minibatches, same loss, same clipping, same Adam."""
+"""The learner's own minibatch loop gives RLlib's weights: same minibatches, same loss, same clipping, same Adam.
+
+RLlib's loop (`PPOTorchLearner.update`, called past the learner's override) is the reference; training never runs it.
+"""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 import torch
+from ray.rllib.algorithms.ppo.torch.ppo_torch_learner import PPOTorchLearner
 from ray.rllib.policy.sample_batch import MultiAgentBatch, SampleBatch
 
 from rllib_conv.learners.minibatches import CyclicMinibatchPlan, ModulePermuters
-from rllib_conv.modules.stacked_multi import STACK_ID
+from rllib_conv.modules.packed.stacked_multi import STACK_ID
 from tests.helpers import bandit_setup, build_learner, hand_batch, params_of
 
 
 def _update(fused: bool, setup_overrides: dict, epochs: int, minibatch: int, rows: int, seed: int = 7) -> dict[str, dict[str, torch.Tensor]]:
     learner = build_learner(bandit_setup(**setup_overrides))
-    learner.config.learner_config_dict["fused_update"] = fused
+    update = learner.update if fused else lambda **kw: PPOTorchLearner.update(learner, **kw)  # RLlib's own loop, the reference
     # Shuffles from NumPy's global RNG, as RLlib's loop draws them (per-module generators are tested below).
     learner.config.learner_config_dict["shuffle_seeds"] = {}
     learner.__dict__.pop("settings", None)  # re-read the settings just changed
@@ -23,7 +27,7 @@ def _update(fused: bool, setup_overrides: dict, epochs: int, minibatch: int, row
         # A fresh batch per update, as in training: RLlib's loop shuffles its batch in place.
         batch = hand_batch(learner.module.head_ids(), rows=rows, seed=3 + i)
         mab = MultiAgentBatch({mid: SampleBatch(cols) for mid, cols in batch.items()}, env_steps=rows * len(batch))
-        learner.update(batch=mab, num_epochs=epochs, minibatch_size=minibatch, shuffle_batch_per_epoch=True, timesteps={})
+        update(batch=mab, num_epochs=epochs, minibatch_size=minibatch, shuffle_batch_per_epoch=True, timesteps={})
     return params_of(learner.module[STACK_ID])
 
 
@@ -72,3 +76,19 @@ def test_each_epoch_of_a_module_uses_every_row_once_with_per_module_generators()
     # Module a's order depends on its own generator only: a plan without b shuffles a identically.
     alone = list(CyclicMinibatchPlan({"a": 8}, 4, 3, shuffle=True, permute=ModulePermuters({"a": 1})))
     assert [b["a"].tolist() for b in alone] == [b["a"].tolist() for b in batches]
+
+
+def test_an_old_fused_update_switch_is_ignored() -> None:
+    # Algorithm checkpoints written while RLlib's loop could still be chosen carry the switch.
+    learner = build_learner(bandit_setup(lam=0.5))
+    learner.config.learner_config_dict["fused_update"] = False
+    learner.__dict__.pop("settings", None)
+    assert learner.settings.lam == 0.5 and not hasattr(learner.settings, "fused_update")
+
+
+def test_the_update_refuses_what_only_remote_learners_pass() -> None:
+    learner = build_learner(bandit_setup(lam=0.5))
+    batch = hand_batch(learner.module.head_ids(), rows=4)
+    mab = MultiAgentBatch({mid: SampleBatch(cols) for mid, cols in batch.items()}, env_steps=4 * len(batch))
+    with pytest.raises(ValueError, match="one local learner"):
+        learner.update(batch=mab, num_total_minibatches=2, timesteps={})

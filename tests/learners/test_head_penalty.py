@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 import torch
 
-from rllib_conv.learners.marginal_learner import HEAD_L2_KEY, MARGINAL_REG_KEY, head_size
-from rllib_conv.modules.stacked_multi import STACK_ID
+from rllib_conv.learners.head_penalty import head_size
+from rllib_conv.learners.marginal_learner import HEAD_L2_KEY, MARGINAL_REG_KEY
+from rllib_conv.modules.packed.stacked_multi import STACK_ID
 from rllib_conv.training.algorithm import Replica
 from rllib_conv.training.experiment import ExperimentConfig
 from rllib_conv.training.replica_export import replica_module

@@ -7,8 +7,9 @@ import pytest
 import torch
 from ray.rllib.algorithms.ppo.torch.ppo_torch_learner import PPOTorchLearner
 
-from rllib_conv.learners.marginal_learner import MARGINAL_REG_KEY, marginal_distance
-from rllib_conv.modules.stacked_multi import STACK_ID
+from rllib_conv.learners.marginal_learner import MARGINAL_REG_KEY
+from rllib_conv.learners.regulariser import marginal_distance
+from rllib_conv.modules.packed.stacked_multi import STACK_ID
 from rllib_conv.training.algorithm import Replica
 from rllib_conv.training.evaluate import head_probs, task_probs
 from rllib_conv.training.replica_export import replica_module

@@ -7,7 +7,7 @@ import torch
 from ray.rllib.policy.sample_batch import MultiAgentBatch, SampleBatch
 
 from rllib_conv.modules import FixedPartnerModule
-from rllib_conv.modules.stacked_multi import STACK_ID, HeadView
+from rllib_conv.modules.packed.stacked_multi import STACK_ID, HeadView
 from tests.helpers import bandit_setup, build_learner, hand_batch, head_weights, task_weights
 
 LR = 3e-4

@@ -110,6 +110,7 @@ def test_mapping_settings_are_validated() -> None:
         ({}, {f"hand-train-{k}" for k in range(4)}),
     ],
 )
+@pytest.mark.slow
 def test_training_plays_the_partners_the_mapping_chooses(ray_session, mapping: dict, played: set[str]) -> None:
     exp = ExperimentConfig(population="bandit-s2-hand", model={"hidden": 8}, ppo={"rollout_per_partner": 16, "num_epochs": 1}, mapping=mapping)
     algo = build_ppo_config(resolve(exp)).build_algo()

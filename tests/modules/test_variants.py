@@ -6,14 +6,14 @@ import numpy as np
 import pytest
 import torch
 
+from rllib_conv.envs.bandit.oracle import bandit_states
 from rllib_conv.envs.blocks import BLUE, PASS, RED, encode_observation
 from rllib_conv.envs.oracles import oracle_for
 from rllib_conv.modules import AGG_HEAD_ID, TASK_ID
-from rllib_conv.modules.stacked_multi import STACK_ID
+from rllib_conv.modules.packed.stacked_multi import STACK_ID
 from rllib_conv.training.algorithm import build_ppo_config
 from rllib_conv.training.ego_setup import resolve
 from rllib_conv.training.evaluate import head_probs, task_probs
-from rllib_conv.training.marginals import bandit_states
 from tests.helpers import bandit_setup, build_learner, plain_ego
 
 
@@ -105,6 +105,7 @@ def test_blocks_oracle_hand_rule(new_task: bool, state: tuple, optimal: list[int
 
 
 @pytest.mark.parametrize("method", ["agg", "no_task_logits", "oracle"])
+@pytest.mark.slow
 def test_every_method_trains_an_iteration(ray_session, method: str) -> None:
     from rllib_conv.training.experiment import ExperimentConfig
 
@@ -117,6 +118,7 @@ def test_every_method_trains_an_iteration(ray_session, method: str) -> None:
     assert result["env_runners"]["num_env_steps_sampled_lifetime"] >= 64
 
 
+@pytest.mark.slow
 def test_hanabi_ego_only_ever_plays_legal_moves(ray_session) -> None:
     from rllib_conv.training.experiment import ExperimentConfig
 
@@ -132,7 +134,7 @@ def test_hanabi_ego_only_ever_plays_legal_moves(ray_session) -> None:
 
 def test_identical_moves_are_merged_before_comparing_marginals() -> None:
     from rllib_conv.envs.oracles import canonical_actions
-    from rllib_conv.training.marginals import merge_actions
+    from rllib_conv.training.marginal_distance import merge_actions
 
     # Red already on its goal (cell 0): placing it on 0 again is the same move as passing.
     obs = _p1_obs(0, 3, 0, 2)[None]

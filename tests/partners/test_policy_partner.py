@@ -7,7 +7,7 @@ import pytest
 import torch
 
 from rllib_conv import envs, partners
-from rllib_conv.partners.play import play_episodes
+from rllib_conv.partners.episodes import play_episodes
 from rllib_conv.partners.trained import PolicyPartner
 
 

@@ -10,6 +10,7 @@ import pytest
 import torch
 
 from rllib_conv import partners
+from rllib_conv.common.sealed import seal_file
 from rllib_conv.modules import AGG_HEAD_ID, TASK_ID, ego_id
 from rllib_conv.pipelines.adapt import CURVE_COLUMNS, adapt_curve, run_adaptation
 from rllib_conv.pipelines.adapt_config import AdaptConfig
@@ -23,6 +24,7 @@ from rllib_conv.training.weights import snapshot
 from tests.helpers import digest
 
 
+@pytest.mark.slow
 def test_adaptation_adds_a_fresh_head_and_reaches_the_new_partner(bandit_egos, tmp_path) -> None:
     trial = Path(bandit_egos["bandit-s2-hand"].path)
     before = digest(trial)
@@ -42,6 +44,7 @@ def test_adaptation_adds_a_fresh_head_and_reaches_the_new_partner(bandit_egos, t
     assert digest(trial) == before  # the trained ego's files are untouched
 
 
+@pytest.mark.slow
 def test_curves_packed_together_equal_curves_run_one_at_a_time(bandit_egos, tmp_path) -> None:
     """Three curves as replicas of one algorithm give the curves each gives alone (float tolerance)."""
     trial = bandit_egos["bandit-s2-hand"].path
@@ -53,6 +56,7 @@ def test_curves_packed_together_equal_curves_run_one_at_a_time(bandit_egos, tmp_
     assert packed["exact_return"].nunique() > 3  # the curves moved
 
 
+@pytest.mark.slow
 def test_bandit_curves_without_sampled_episodes_keep_their_exact_returns(bandit_egos, tmp_path) -> None:
     """`episodes: 0` plays no evaluation episodes: the same exact returns (evaluation draws nothing training uses), no sampled ones."""
     trial = bandit_egos["bandit-s2-hand"].path
@@ -70,6 +74,7 @@ def test_no_sampled_episodes_is_refused_where_no_exact_return_exists() -> None:
         player_return(partner, "blocks", {}, partner, "player_0", "player_1", episodes=0)
 
 
+@pytest.mark.slow
 def test_adapting_drops_the_head_penalty(bandit_egos, tmp_path) -> None:
     import shutil
 
@@ -79,10 +84,12 @@ def test_adapting_drops_the_head_penalty(bandit_egos, tmp_path) -> None:
     shutil.copytree(bandit_egos["bandit-s2-hand"].path, trial)
     trained = yaml.safe_load((trial / "config.yaml").read_text())
     (trial / "config.yaml").write_text(yaml.safe_dump({**trained, "head_l2": 0.1}))
+    seal_file(trial / "config.yaml")  # edited on purpose: sealed again, as training writes it
     curve = adapt_curve(AdaptConfig(runs=[str(trial)]), str(trial), "hand-test-1")
     assert curve.trained.head_l2 == 0.1 and curve.setup.exp.head_l2 == 0.0  # adapting is plain PPO, as in the paper
 
 
+@pytest.mark.slow
 def test_scratch_starts_from_nothing(bandit_egos, tmp_path) -> None:
     trial = bandit_egos["bandit-s2-hand"].path
     curve = adapt_curve(AdaptConfig(runs=[trial], method="scratch"), trial, "hand-test-0")
@@ -92,6 +99,7 @@ def test_scratch_starts_from_nothing(bandit_egos, tmp_path) -> None:
     assert (curves["method"] == "scratch").all()
 
 
+@pytest.mark.slow
 def test_zero_shot_composes_new_task_module_with_test_partner_heads(bandit_egos, tmp_path) -> None:
     trial = bandit_egos["bandit-s1-hand"].path
     table = run_zeroshot({"name": "z", "runs": [trial], "head_steps": 1024, "task_steps": 4096}, out=tmp_path, storage=tmp_path / "runs")
@@ -141,6 +149,7 @@ def test_outer_update_by_hand() -> None:
     assert outer_update(theta, adapted, 0.25)["task"]["w"].tolist() == [1.5, 1.0]
 
 
+@pytest.mark.slow
 def test_one_maml_outer_step_moves_weights_by_outer_step_times_adaptation(ray_session) -> None:
     exp = ExperimentConfig(population="bandit-s2-hand", method="maml", model={"hidden": 8}, ppo={"rollout_per_partner": 16, "num_epochs": 2})
     setup = resolve(exp)
@@ -178,6 +187,7 @@ def test_one_maml_outer_step_moves_weights_by_outer_step_times_adaptation(ray_se
         algo.stop()
 
 
+@pytest.mark.slow
 def test_maml_trains_through_the_pipeline(ray_session, tmp_path) -> None:
     from rllib_conv.pipelines.train import run
 

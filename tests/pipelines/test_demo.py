@@ -4,7 +4,11 @@ from __future__ import annotations
 
 import re
 
+import pytest
+
 from rllib_conv.pipelines.demo import demo
+
+pytestmark = pytest.mark.slow  # every test here trains (RLlib, Tune or `rllib-conv` subprocesses)
 
 
 def test_demo_trains_then_prints_returns_and_marginals(ray_session, tmp_path, capsys) -> None:

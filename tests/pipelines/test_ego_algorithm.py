@@ -8,21 +8,24 @@ import sys
 import textwrap
 
 import numpy as np
+import pytest
 import torch
 
+from rllib_conv.envs.bandit.oracle import bandit_states
 from rllib_conv.envs.blocks import decode_observation
 from rllib_conv.learners.marginal_learner import MarginalPPOLearner
 from rllib_conv.modules import ego_id, partner_id
 from rllib_conv.modules.multi import replica_id
-from rllib_conv.modules.stacked_multi import STACK_ID
+from rllib_conv.modules.packed.stacked_multi import STACK_ID
 from rllib_conv.pipelines.train import summarize
 from rllib_conv.training.algorithm import Replica, build_algorithm, build_ppo_config
 from rllib_conv.training.ego_setup import resolve
 from rllib_conv.training.evaluate import head_probs
 from rllib_conv.training.experiment import ExperimentConfig
-from rllib_conv.training.marginals import bandit_states
 from rllib_conv.training.replica_export import replica_module
 from rllib_conv.training.weights import learner_module
+
+pytestmark = pytest.mark.slow  # every test here trains (RLlib, Tune or `rllib-conv` subprocesses)
 
 SEEN: dict[str, list] = {}
 
@@ -143,7 +146,7 @@ def test_checkpoint_round_trip_in_a_fresh_process(ray_session, tmp_path) -> None
         from rllib_conv.training.algorithm import Replica
         from rllib_conv.training.ego_setup import resolve
         from rllib_conv.training.experiment import ExperimentConfig
-        from rllib_conv.training.marginals import bandit_states
+        from rllib_conv.envs.bandit.oracle import bandit_states
         from rllib_conv.training.evaluate import head_probs
         from rllib_conv.training.replica_export import replica_module
         ray.init(num_cpus=1, include_dashboard=False, log_to_driver=False)

@@ -174,6 +174,7 @@ def test_marginals_leave_out_unfinished_or_unbegun_trials_and_populations_whose_
     assert seen == ["bandit-s2-hand__agg"]
 
 
+@pytest.mark.slow
 def test_quick_reproduction_runs_every_stage_and_builds_the_report(ray_session, tmp_path, capsys) -> None:
     out = tmp_path / "repro"
     args = ["reproduce", "bandit", "--quick", "--populations", "bandit-s2-hand", "--out", str(out)]

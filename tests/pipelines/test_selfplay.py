@@ -18,6 +18,7 @@ import yaml
 from rllib_conv import partners
 from rllib_conv.common import config_files
 from rllib_conv.envs.bandit import good_arms, paper_prizes
+from rllib_conv.envs.bandit.oracle import bandit_states
 from rllib_conv.modules import partner_id
 from rllib_conv.modules.multi import replica_id
 from rllib_conv.partners.trained import TrainedPolicyPartner
@@ -27,7 +28,6 @@ from rllib_conv.pipelines.selfplay_config import SelfPlayConfig
 from rllib_conv.training.algorithm import build_ppo_config
 from rllib_conv.training.ego_setup import resolve
 from rllib_conv.training.experiment import ExperimentConfig
-from rllib_conv.training.marginals import bandit_states
 
 OBS, MASK = bandit_states({"symmetric": 2})
 
@@ -46,6 +46,7 @@ def trained(ray_session, tmp_path_factory):
     return root, population, report
 
 
+@pytest.mark.slow
 def test_pairs_pass_the_gate_with_one_convention_per_context(trained) -> None:
     root, population, report = trained
     assert report["passed"].all() and len(population.partners) == 3
@@ -61,6 +62,7 @@ def test_pairs_pass_the_gate_with_one_convention_per_context(trained) -> None:
     assert (report["steps_to_gate"] <= 12000).all()
 
 
+@pytest.mark.slow
 def test_population_folder_is_self_contained_and_loads_in_a_fresh_process(trained, tmp_path) -> None:
     root, population, _ = trained
     moved = tmp_path / "moved"
@@ -70,7 +72,7 @@ def test_population_folder_is_self_contained_and_loads_in_a_fresh_process(traine
         f"""
         import json
         from rllib_conv import partners
-        from rllib_conv.training.marginals import bandit_states
+        from rllib_conv.envs.bandit.oracle import bandit_states
         obs, mask = bandit_states({{"symmetric": 2}})
         pop = partners.get({str(moved)!r})
         print("RESULT" + json.dumps({{e.name: e.build().probs(obs, mask).tolist() for e in pop.partners}}))
@@ -87,6 +89,7 @@ def test_population_folder_is_self_contained_and_loads_in_a_fresh_process(traine
     assert all(not p["params"]["checkpoint"].startswith("/") for p in manifest["partners"])
 
 
+@pytest.mark.slow
 def test_trained_population_plugs_into_ego_training(trained) -> None:
     root, population, _ = trained
     exp = ExperimentConfig(population=str(root / "pops" / "sp-test"), lam=0.5, model={"hidden": 8}, ppo={"rollout_per_partner": 32, "num_epochs": 1})
@@ -104,6 +107,7 @@ def test_trained_population_plugs_into_ego_training(trained) -> None:
     assert before == after == {e.name: e.build().act_batch(OBS, MASK).tolist() for e in setup.train}
 
 
+@pytest.mark.slow
 def test_pairs_that_miss_the_gate_are_reported_not_kept(ray_session, tmp_path) -> None:
     raw = selfplay_raw(name="too-short")
     raw.update({"train_pairs": 1, "test_pairs": 0, "run": {"timesteps": 128}, "gate": {"score": 0.95, "episodes": 100, "check_every": 1, "check_episodes": 50}})
@@ -115,6 +119,7 @@ def test_pairs_that_miss_the_gate_are_reported_not_kept(ray_session, tmp_path) -
         train_population(raw, out=tmp_path / "pops", storage=tmp_path / "runs")
 
 
+@pytest.mark.slow
 def test_a_pair_trains_the_same_in_a_reused_worker(trained, tmp_path) -> None:
     """Tune runs trial after trial in one worker (`reuse_actors`); nothing of a trial carries into the next."""
     root, population, _ = trained
@@ -132,6 +137,7 @@ def test_a_pair_trains_the_same_in_a_reused_worker(trained, tmp_path) -> None:
         np.testing.assert_array_equal(seat(after).probs(OBS, MASK), seat(before).probs(OBS, MASK))
 
 
+@pytest.mark.slow
 def test_a_pair_trains_the_same_in_any_process() -> None:
     """Two seats moving at once (the bandit): RLlib's own sampling order follows the string hash
     seed, which differs per process; with batched sampling the pair is the same in every one."""
@@ -162,6 +168,7 @@ def test_a_pair_trains_the_same_in_any_process() -> None:
     assert digests[0] == digests[1]
 
 
+@pytest.mark.slow
 def test_missing_partner_checkpoint_is_a_clear_error(trained, tmp_path) -> None:
     root, _, _ = trained
     broken = tmp_path / "broken"
@@ -186,6 +193,7 @@ def test_crossplay_matrix_shape_labels_and_diagonal(tmp_path) -> None:
     assert pd.read_csv(csv, index_col=0).shape == (8, 8) and png.stat().st_size > 5000
 
 
+@pytest.mark.slow
 def test_crossplay_of_trained_population_has_self_play_on_the_diagonal(trained) -> None:
     root, population, _ = trained
     matrix = crossplay(population, population, episodes=200)

@@ -12,20 +12,21 @@ import yaml
 
 from rllib_conv import partners
 from rllib_conv.common.run_folders import CONFIG_FILE, EVAL_FILE, SPEC_FILE
+from rllib_conv.envs.bandit.oracle import bandit_states
 from rllib_conv.envs.oracles import oracle_for
-from rllib_conv.learners.marginal_learner import head_size
+from rllib_conv.learners.head_penalty import head_size
 from rllib_conv.modules.multi import ego_id
 from rllib_conv.pipelines.train import run, train_stage
 from rllib_conv.training import experiment
 from rllib_conv.training.checkpoints import last_checkpoint
 from rllib_conv.training.evaluate import load_module, task_probs
-from rllib_conv.training.marginals import bandit_states
 from rllib_conv.training.tuning import check_spec
 from tests.helpers import tiny_experiment
 
 PARTNERS = [f"hand-train-{k}" for k in range(4)]
 
 
+@pytest.mark.slow
 def test_modular_ego_learns_conventions_and_marginals_within_paper_budget(bandit_egos) -> None:
     """Bandit, 2 symmetric contexts, 4 hand-designed partners, lam 0.5, the paper's 10 000 steps."""
     ego = bandit_egos["bandit-s2-hand"]
@@ -46,6 +47,7 @@ def test_modular_ego_learns_conventions_and_marginals_within_paper_budget(bandit
     assert result.checkpoint is not None
 
 
+@pytest.mark.slow
 def test_one_progress_line_per_iteration(ray_session, tmp_path, capfd) -> None:
     raw = experiment.load("tune_configs/bandit_modular.yaml", ["run.timesteps=512", "name=progress", "model.hidden=8"])
     run(raw, storage=tmp_path)
@@ -54,6 +56,7 @@ def test_one_progress_line_per_iteration(ray_session, tmp_path, capfd) -> None:
     assert "steps      256" in lines[0] and "steps      512" in lines[1] and "reg " in lines[1]
 
 
+@pytest.mark.slow
 def test_grid_over_lam_from_yaml(ray_session, tmp_path) -> None:
     path = tmp_path / "grid.yaml"
     path.write_text(
@@ -75,6 +78,7 @@ def test_grid_over_lam_from_yaml(ray_session, tmp_path) -> None:
     assert yaml.safe_load(open(tmp_path / "runs" / "grid" / "experiment.yaml"))["lam"] == {"grid_search": [0.0, 0.5]}
 
 
+@pytest.mark.slow
 def test_head_penalty_hands_the_rules_to_the_task_module_and_keeps_the_conventions(bandit_egos, tmp_path) -> None:
     """Bandit, 2 symmetric and 2 rule contexts: with `head_l2` the heads hold (almost) nothing in rule contexts.
 
@@ -119,6 +123,7 @@ def test_a_recorded_experiment_may_grow_its_seeds_but_not_change(tmp_path) -> No
         check_spec(tmp_path, {**spec, "seed": {"grid_search": [7]}})  # only the key named may differ
 
 
+@pytest.mark.slow
 def test_a_stage_job_is_cut_to_fill_the_cores_and_each_seed_trains_as_alone(ray_session, tmp_path) -> None:
     # One job of 2 seeds on the session's 2 CPUs runs as 2 trials (packs.spread_over_cores).
     raw = tiny_experiment("cut")
@@ -136,6 +141,7 @@ def test_a_stage_job_is_cut_to_fill_the_cores_and_each_seed_trains_as_alone(ray_
     assert seed_eval(tmp_path / "both", 0) != pytest.approx(alone, rel=1e-5, abs=1e-6)
 
 
+@pytest.mark.slow
 def test_a_train_stage_with_more_seeds_trains_the_new_seeds_only(ray_session, tmp_path) -> None:
     raw = tiny_experiment("grown")
     assert train_stage([{**raw, "seed": {"grid_search": [0]}}], storage=tmp_path) == ["grown"]
@@ -148,6 +154,7 @@ def test_a_train_stage_with_more_seeds_trains_the_new_seeds_only(ray_session, tm
     assert train_stage([{**raw, "seed": {"grid_search": [0, 1]}}], storage=tmp_path) == []
 
 
+@pytest.mark.slow
 def test_a_manifest_path_relative_to_the_working_folder_trains(ray_session, tmp_path, monkeypatch) -> None:
     # Tune runs each trial in its own folder, where a relative path names nothing (a reproduce
     # with its default relative --out failed this way on its self-play population).

@@ -58,6 +58,7 @@ def _adapt(trial: Path, tmp_path: Path) -> int:
     return main(["adapt", str(trial), "--storage", str(tmp_path / "runs"), "--out", str(tmp_path / "curves")])
 
 
+@pytest.mark.slow
 def test_adapt_refuses_a_corrupt_checkpoint(bandit_egos, tmp_path, capsys) -> None:
     trial = _copy_trial(bandit_egos, tmp_path)
     state = last_checkpoint(trial) / RL_MODULE_DIR / "task" / "module_state.pkl"
@@ -69,6 +70,7 @@ def test_adapt_refuses_a_corrupt_checkpoint(bandit_egos, tmp_path, capsys) -> No
     assert digest(trial) == before and not (tmp_path / "runs").exists() and not (tmp_path / "curves").exists()
 
 
+@pytest.mark.slow
 def test_adapt_refuses_a_trial_without_checkpoints(bandit_egos, tmp_path, capsys) -> None:
     trial = _copy_trial(bandit_egos, tmp_path)
     for folder in checkpoints(trial):
@@ -79,6 +81,7 @@ def test_adapt_refuses_a_trial_without_checkpoints(bandit_egos, tmp_path, capsys
     assert not (tmp_path / "runs").exists()
 
 
+@pytest.mark.slow
 def test_population_partner_files_gone_or_damaged(bandit_egos, tmp_path, capsys) -> None:
     """A population of trained partners (here: the task module of a trained ego, sealed like `partners train` does)."""
     folder = tmp_path / "pop"

@@ -13,6 +13,8 @@ from rllib_conv.training.algorithm import build_ppo_config
 from rllib_conv.training.ego_setup import setup_for
 from rllib_conv.training.experiment import ExperimentConfig
 
+pytestmark = pytest.mark.slow  # every test here trains (RLlib, Tune or `rllib-conv` subprocesses)
+
 
 def _flaky_factory(marker: Path, crash_at: int):
     """A bandit whose `crash_at`-th step raises, once per `marker` file (which it then creates)."""

@@ -13,10 +13,13 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pandas as pd
+import pytest
 import yaml
 
 from rllib_conv.common.resources import config_file
 from tests.sweeps.killing import kill_ray_instance, private_ray_tmp
+
+pytestmark = pytest.mark.slow  # every test here trains (RLlib, Tune or `rllib-conv` subprocesses)
 
 
 def _plan(tmp_path: Path) -> Path:
@@ -31,7 +34,15 @@ def _plan(tmp_path: Path) -> Path:
 def _start(plan: Path, out: Path, ray_tmp: str) -> subprocess.Popen:
     env = {**os.environ, "RAY_TMPDIR": ray_tmp, "OMP_NUM_THREADS": "1", "RAY_ADDRESS": ""}
     cmd = [sys.executable, "-m", "rllib_conv.cli", "reproduce", "bandit", "--quick", "--plan", str(plan), "--out", str(out)]
-    return subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, start_new_session=True)
+    # SIGINT at its default in the child: a background job (nohup, a scheduler, `make test &`) starts with SIGINT
+    # ignored and a child inherits that, so the Ctrl-C test's SIGINT would otherwise never reach Python.
+    return subprocess.Popen(
+        cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, start_new_session=True, preexec_fn=_default_sigint
+    )
+
+
+def _default_sigint() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def _finish(proc: subprocess.Popen, ray_tmp: str) -> str:
@@ -79,13 +90,17 @@ def test_reproduce_killed_in_train_and_in_adapt_finishes_as_an_uninterrupted_run
     ray_b = private_ray_tmp()
     proc = _start(plan, killed, ray_b)
     # Train: some egos finished, the stage not.
-    _kill_when(proc, ray_b, lambda: any(game.glob("runs/*__*/*/seed=*/eval.json")) and not (game / "train.done").exists(), "training")
+    _kill_when(
+        proc, ray_b, lambda: any(game.glob("runs/*__*/*/seed=*/eval.json")) and not (game / "train.done").exists(), "training"
+    )
     after_train_kill = _finished_units(game)
 
     ray_c = private_ray_tmp()
     proc = _start(plan, killed, ray_c)
     # Adapt: training done, some packs finished, the stage not.
-    _kill_when(proc, ray_c, lambda: any(game.glob("runs/adapt-stage-*/*/curves.csv")) and not (game / "adapt.done").exists(), "adapting")
+    _kill_when(
+        proc, ray_c, lambda: any(game.glob("runs/adapt-stage-*/*/curves.csv")) and not (game / "adapt.done").exists(), "adapting"
+    )
     after_adapt_kill = _finished_units(game)
     assert set(after_train_kill) < set(after_adapt_kill)
 
@@ -118,7 +133,9 @@ def test_reproduce_interrupted_in_train_says_so_marks_nothing_done_and_continues
     kill_ray_instance(ray_a)
     log = log.decode()
     assert proc.returncode == 130, log[-4000:]
-    assert re.search(r"rllib-conv: interrupted: \d+ of \d+ trials of .*train-stage-.* run the same command again", log), log[-4000:]
+    assert re.search(r"rllib-conv: interrupted: \d+ of \d+ trials of .*train-stage-.* run the same command again", log), log[
+        -4000:
+    ]
     assert "[bandit] train: finished" not in log and not (game / "train.done").exists()
     ray_b = private_ray_tmp()
     log = _finish(_start(plan, out, ray_b), ray_b)

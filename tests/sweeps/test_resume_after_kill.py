@@ -13,12 +13,15 @@ import time
 from pathlib import Path
 
 import pandas as pd
+import pytest
 import torch
 import yaml
 
 from rllib_conv.common.run_folders import RL_MODULE_DIR, checkpoints
 from rllib_conv.training.checkpoints import last_checkpoint
 from tests.sweeps.killing import kill_ray_instance, private_ray_tmp
+
+pytestmark = pytest.mark.slow  # every test here trains (RLlib, Tune or `rllib-conv` subprocesses)
 
 SWEEP = {
     "name": "sweep",

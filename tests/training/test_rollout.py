@@ -19,7 +19,7 @@ from ray.rllib.core.learner.training_data import TrainingData
 from ray.rllib.env.multi_agent_episode import MultiAgentEpisode
 from ray.rllib.evaluation.postprocessing import Postprocessing
 
-from rllib_conv.learners.rollout import ModuleRows, Rollout, rollout_train_batch
+from rllib_conv.learners.packed.rollout import ModuleRows, Rollout, rollout_train_batch
 from rllib_conv.modules.multi import replica_id
 from rllib_conv.training.batched_env_runner import RunningEpisode
 from tests.helpers import bandit_setup, build_learner

@@ -6,7 +6,7 @@ Their targets (the project's, not the paper's), each judged on paired seed-level
   adapter's at the same evaluation points (the whole interval of posterior − Bayes above −0.01);
 - user-study partners: above every other method;
 - blocks, self-play partners: above BaselineAgg and First-Order MAML; hand-designed partners: no worse
-  than ours λ=0.5 (the paired interval not wholly below 0);
+  than ours λ=0.5 by more than the plan's `no_worse_margin` (the paired interval wholly above −margin);
 - Hanabi: above ours λ=0.5 and BaselineAgg.
 """
 
@@ -19,13 +19,15 @@ import pandas as pd
 
 from analysis import figures
 from analysis.paper import label_name, population_name
-from analysis.report.context import PAPER_METHOD, Context
+from analysis.report.context import Context
 from analysis.report.formatting import digits, fmt_summary, md_table
-from analysis.report.verdicts import CONTRADICTED, NOT_SHOWN, SUPPORTED, Difference, advantage, beats_all
+from analysis.report.verdicts import NOT_SHOWN, Difference, Judgement, advantage, beats_every, no_worse, no_worse_margin
 from analysis.summaries import adaptation_auc, bayes_optimal_return, mean_ci, seed_means, seed_summary
+from rllib_conv.common import adapters
+from rllib_conv.common.methods import BEYOND_GUARDED, BEYOND_POSTERIOR, PAPER_METHOD
 
-POSTERIOR = "beyond-posterior"
-GUARDED = "beyond-guarded"  # the posterior with its fine-tuning guarded (training/fine_tune_guard.py)
+POSTERIOR = BEYOND_POSTERIOR
+GUARDED = BEYOND_GUARDED  # the posterior with its fine-tuning guarded (adaptation/fine_tune_guard.py)
 BEYOND = (POSTERIOR, GUARDED)
 WITHIN = ("partner",)
 BAYES_MARGIN = 0.01
@@ -54,17 +56,22 @@ def _target(ctx: Context, population: str, auc: pd.DataFrame, label: str) -> tup
     symmetric = symmetric_contexts(population)
     if symmetric is not None:
         gap = bayes_gap(ctx.adaptation[(ctx.adaptation["population"] == population) & (ctx.adaptation["label"] == label)], symmetric, label)
-        met = SUPPORTED if gap.lo > -BAYES_MARGIN else CONTRADICTED if gap.hi < -BAYES_MARGIN else NOT_SHOWN
-        return f"AUC within {BAYES_MARGIN} of the Bayes-optimal adapter", met, gap.text(places)
+        return f"AUC within {BAYES_MARGIN} of the Bayes-optimal adapter", no_worse(gap, BAYES_MARGIN), gap.text(places)
     if population == "bandit-user-study":
-        return "above every method", *beats_all(auc, label, sorted(labels - set(BEYOND)), "auc", WITHIN, places)
+        found = beats_every(auc, label, sorted(labels - set(BEYOND)), "auc", WITHIN, places)
+        return "above every method", found.cell, found.evidence
     if game == "blocks" and "selfplay" in population:
-        return "above BaselineAgg and First-Order MAML", *beats_all(auc, label, [x for x in ("agg", "maml") if x in labels], "auc", WITHIN, places)
+        found = beats_every(auc, label, ("agg", "maml"), "auc", WITHIN, places)  # both named: one missing is not shown (missing: ...)
+        return "above BaselineAgg and First-Order MAML", found.cell, found.evidence
     if game == "blocks":
-        diff = advantage(auc, label, PAPER_METHOD, "auc", WITHIN)
-        return f"no worse than {label_name(PAPER_METHOD)}", (CONTRADICTED if diff.hi < 0 else SUPPORTED if np.isfinite(diff.lo) else NOT_SHOWN), diff.text(places)
+        diff, margin = advantage(auc, label, PAPER_METHOD, "auc", WITHIN), no_worse_margin(ctx.plans.get(game, {"game": game}))
+        found = Judgement(no_worse(diff, margin), diff.text(places))
+        if PAPER_METHOD not in labels:
+            found = Judgement(NOT_SHOWN, "nothing to compare", (label_name(PAPER_METHOD),))
+        return f"no worse than {label_name(PAPER_METHOD)} by more than {margin:g} (the plan's margin)", found.cell, found.evidence
     if game == "hanabi":
-        return "above ours λ=0.5 and BaselineAgg", *beats_all(auc, label, [x for x in (PAPER_METHOD, "agg") if x in labels], "auc", WITHIN, places)
+        found = beats_every(auc, label, (PAPER_METHOD, "agg"), "auc", WITHIN, places)
+        return "above ours λ=0.5 and BaselineAgg", found.cell, found.evidence
     return None
 
 
@@ -78,7 +85,7 @@ def beyond_section(ctx: Context) -> str:
         "",
         f"`{POSTERIOR}` is not the paper's method: it adapts the ego trained as ours λ=0.5, but plays by a posterior over which "
         "training partner's convention the new partner follows, whole or situation by situation, from the partner's moves "
-        "(`rllib_conv/training/convention_posterior.py`; docs/adapting.md); on blocks it plays the exact best response to the "
+        f"(`{adapters.adapter(adapters.POSTERIOR).module}`; docs/adapting.md); on blocks it plays the exact best response to the "
         "posterior's prediction of the partner's moves. Its targets are this project's, judged by "
         "paired seed-level intervals; they never change a verdict on the paper.",
     ]
@@ -86,7 +93,7 @@ def beyond_section(ctx: Context) -> str:
         lines += [
             "",
             f"`{GUARDED}` is the same adapter with its fine-tuning guarded: the ego is evaluated as it was before any update "
-            "until the adapting one is measured better on its own training rollouts (`rllib_conv/training/fine_tune_guard.py`).",
+            f"until the adapting one is measured better on its own training rollouts (`{adapters.adapter(adapters.GUARD).module}`).",
         ]
     data = ctx.adaptation[ctx.adaptation["population"].isin(ctx.adaptation.loc[ctx.adaptation["label"].isin(present), "population"].unique())]
     auc = adaptation_auc(data)
@@ -116,8 +123,9 @@ def beyond_section(ctx: Context) -> str:
         "",
         "### Targets",
         "",
-        "Supported: the whole 95% interval over seeds is on the target's side (for the Bayes-optimal target: above −0.01; for "
-        "'no worse': not wholly below 0); contradicted: wholly on the other side; not shown otherwise.",
+        f"Supported: the whole 95% interval over seeds is on the target's side (for the Bayes-optimal target: above −{BAYES_MARGIN}; for "
+        "'no worse': above −the margin the plan declares, `no_worse_margin`); contradicted: wholly on the other side; not shown "
+        "otherwise, and not shown (missing: ...) where a method the target names was not run.",
         "",
         md_table(["population", "adapter", "target", "verdict", "evidence"], targets),
     ]

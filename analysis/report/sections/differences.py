@@ -35,7 +35,8 @@ def differences_section(ctx: Context) -> str:
             lines += ["", f"### {title}", ""]
         for c in checks:
             why = "quick plan (short runs): not a test of the claim" if ctx.quick(c.game) else "see the section's table above"
-            lines.append(f"- *{c.claim.text}* ({c.scope}): {c.evidence}. Why: {why}.")
+            missing = f"; missing: {', '.join(c.missing)}" if c.missing else ""
+            lines.append(f"- *{c.claim.text}* ({c.scope}): {c.evidence}{missing}. Why: {why}.")
     if ctx.notes:
         lines += ["", "### Absent or partial data, and other differences", ""]
         lines += [f"- {n}" for n in ctx.notes]

@@ -4,14 +4,14 @@ from __future__ import annotations
 
 from analysis import figures, paper
 from analysis.paper import label_name, population_name
-from analysis.report.context import PAPER_METHOD, Context
+from analysis.report.context import Context
 from analysis.report.formatting import fmt_ci, md_table
 from analysis.report.verdicts import ClaimCheck, Comparison, beats_all, claims_block, variants_block
 from analysis.summaries import seed_summary
+from rllib_conv.common.methods import LAM0, PAPER_METHOD
 
 # The methods the paper's marginal claims are about: ours λ=0.5, λ=0.0 (named by its caption) and the
 # baselines with an estimate of the marginals; λ=0.3, low-dim z and the rest are variants.
-LAM0 = "modular-lam0"
 MARGINAL_BASELINES = ("agg", "maml")
 CLAIMED = (PAPER_METHOD, LAM0, *MARGINAL_BASELINES)
 

@@ -6,8 +6,9 @@ import pandas as pd
 
 from analysis import loaders
 from analysis.paper import label_name
-from analysis.report.context import EXTENSIONS, Context
+from analysis.report.context import Context
 from analysis.report.formatting import md_table
+from rllib_conv.common.methods import EXTENSIONS
 
 
 def trained_steps(curves: pd.DataFrame) -> str:

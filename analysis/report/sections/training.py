@@ -20,7 +20,7 @@ def training_section(ctx: Context) -> str:
     lines.append("")
     rows = []
     for r in ctx.train_summary.itertuples():
-        top = loaders.MAX_SCORE.get(r.game, float("nan"))
+        top = loaders.max_score(ctx.plans.get(r.game, {"game": r.game}))
         rows.append([r.game, population_name(r.population), label_name(r.label), fmt_ci(r.mean, r.lo, r.hi, r.n, digits(r.game)), f"{top:g}"])
     lines.append(md_table(["game", "population", "method", "final training return", "max"], rows))
     for game in sorted(ctx.training["game"].unique()):

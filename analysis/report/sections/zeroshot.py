@@ -4,10 +4,11 @@ from __future__ import annotations
 
 from analysis import figures, paper
 from analysis.paper import label_name, population_name
-from analysis.report.context import PAPER_METHOD, Context
+from analysis.report.context import Context
 from analysis.report.formatting import digits, fmt_summary, md_table
 from analysis.report.verdicts import ClaimCheck, Comparison, beats_all, variants_block
 from analysis.summaries import seed_summary, with_value
+from rllib_conv.common.methods import PAPER_METHOD
 
 BASELINE = "no_task_logits"  # the paper's zero-shot claim is against BaselineModular
 WITHIN = ("partner",)  # zero-shot rows are paired on (seed, test partner)
@@ -39,7 +40,7 @@ def zeroshot_section(ctx: Context) -> str:
         c = Comparison("zero-shot", f"{population_name(r.population)}, {label_name(r.label)}", pn.value, pn.source, r.mean, r.lo, r.hi, r.n, digits(r.game))
         if c.differs:
             c.reasons = ctx.reasons(r.game, r.population, r.label, r.n)
-            if r.game == "bandit" and r.label == "modular-lam0.5" and r.mean < pn.value:
+            if r.game == "bandit" and r.label == PAPER_METHOD and r.mean < pn.value:
                 where = "here" if r.population == paper.RELEASED_CODE_POPULATION else "on Arms 2"
                 c.reasons.append(
                     f"the authors' released code falls short too {where} ({paper.RELEASED_CODE_ZEROSHOT.value:g} against the paper's 0.89): "

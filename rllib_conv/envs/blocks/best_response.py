@@ -12,8 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from rllib_conv.envs.best_response import register_best_response
-from rllib_conv.envs.blocks import (
+from rllib_conv.envs.blocks.env import (
     BLUE,
     GOALS,
     HIDDEN,
@@ -94,5 +93,3 @@ def blocks_best_response(env_config: dict[str, Any], ego_agent: str) -> BlocksBe
     """The planner for an ego playing P1; None for P2 (it would need to infer the hidden goal)."""
     return BlocksBestResponse(bool(env_config.get("new_task", False))) if ego_agent == "player_0" else None
 
-
-register_best_response("blocks", blocks_best_response)

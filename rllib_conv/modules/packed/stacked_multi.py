@@ -22,7 +22,7 @@ from ray.rllib.core.columns import Columns
 from ray.rllib.core.rl_module.apis.value_function_api import ValueFunctionAPI
 from ray.rllib.core.rl_module.torch import TorchRLModule
 
-from rllib_conv.modules.ego_stack import HEAD_POLICY, EgoStack, pad_rows, unpad
+from rllib_conv.modules.packed.ego_stack import HEAD_POLICY, EgoStack, pad_rows, unpad
 from rllib_conv.modules.shared_wiring import SharedWiringMultiRLModule
 from rllib_conv.modules.task_module import split_obs
 
