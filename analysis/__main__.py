@@ -7,10 +7,18 @@ import argparse
 
 def main(argv: list[str] | None = None) -> None:
     """Parse the command line, build the report and print its path."""
-    parser = argparse.ArgumentParser(prog="python -m analysis", description="Build report.md (paper vs ours, with figures) from a reproduction folder.")
+    parser = argparse.ArgumentParser(
+        prog="python -m analysis", description="Build report.md (paper vs ours, with figures) from a reproduction folder."
+    )
     parser.add_argument("root", help="a `rllib-conv reproduce --out` folder (one sub-folder per game) or a single game folder")
     parser.add_argument("--out", default=None, help="folder for report.md and figures/ (default: ROOT/report)")
-    parser.add_argument("--user-study", nargs="*", default=None, metavar="PATH", help="recorded session CSVs or folders (default: ROOT/user_study if present)")
+    parser.add_argument(
+        "--user-study",
+        nargs="*",
+        default=None,
+        metavar="PATH",
+        help="recorded session CSVs or folders (default: ROOT/user_study if present)",
+    )
     args = parser.parse_args(argv)
     from analysis.report import build_report
 

@@ -136,7 +136,15 @@ def _legend_below(fig: Figure, axes: Sequence[plt.Axes], note: str = "") -> None
     if handles:
         # Below the figure, whatever its rows: `save` crops to the drawn content, legend included.
         for ncol in range(min(5, len(handles)), 0, -1):
-            legend = fig.legend(list(handles.values()), list(handles), loc="upper center", ncol=ncol, frameon=False, bbox_to_anchor=(0.5, 0.0), fontsize=8)
+            legend = fig.legend(
+                list(handles.values()),
+                list(handles),
+                loc="upper center",
+                ncol=ncol,
+                frameon=False,
+                bbox_to_anchor=(0.5, 0.0),
+                fontsize=8,
+            )
             box = legend.get_window_extent(renderer)
             if box.width <= fig.bbox.width or ncol == 1:
                 break
@@ -152,10 +160,26 @@ def _band_plot(ax: plt.Axes, band: pd.DataFrame, x: str) -> None:
         part = band[band["label"] == label].sort_values(x)
         ours = label == PAPER_METHOD
         colour_, dashes = style(label)
-        ax.plot(part[x], part["mean"], linestyle=dashes, color=colour_, label=label_name(label), lw=2.6 if ours else 1.5, zorder=4 if ours else 3)
+        ax.plot(
+            part[x],
+            part["mean"],
+            linestyle=dashes,
+            color=colour_,
+            label=label_name(label),
+            lw=2.6 if ours else 1.5,
+            zorder=4 if ours else 3,
+        )
         has_ci = part["lo"].notna()
         if has_ci.any():
-            ax.fill_between(part.loc[has_ci, x], part.loc[has_ci, "lo"], part.loc[has_ci, "hi"], color=colour_, alpha=0.25 if ours else 0.12, lw=0, zorder=2)
+            ax.fill_between(
+                part.loc[has_ci, x],
+                part.loc[has_ci, "lo"],
+                part.loc[has_ci, "hi"],
+                color=colour_,
+                alpha=0.25 if ours else 0.12,
+                lw=0,
+                zorder=2,
+            )
 
 
 def adaptation_curves(
@@ -189,7 +213,9 @@ def adaptation_curves(
     return fig
 
 
-def training_curves(training: pd.DataFrame, metric: str = "return_mean", panels: Sequence[str] | None = None, ncols: int = 4) -> Figure:
+def training_curves(
+    training: pd.DataFrame, metric: str = "return_mean", panels: Sequence[str] | None = None, ncols: int = 4
+) -> Figure:
     """Training return against env steps: one panel per population, one line per label, 95% band over seeds.
 
     `training` is `loaders.load_training`'s frame; `metric` one of its columns. Seeds
@@ -213,7 +239,12 @@ def training_curves(training: pd.DataFrame, metric: str = "return_mean", panels:
 
 
 def _grouped_bars(
-    ax: plt.Axes, summary: pd.DataFrame, groups: Sequence[str], paper: Mapping[tuple[str, str], float] | None, paper_label: str, values: bool = False
+    ax: plt.Axes,
+    summary: pd.DataFrame,
+    groups: Sequence[str],
+    paper: Mapping[tuple[str, str], float] | None,
+    paper_label: str,
+    values: bool = False,
 ) -> None:
     """Bars of `summary` (group, label, mean, lo, hi) grouped by `groups`, one colour per label; paper values as black crosses.
 
@@ -232,14 +263,42 @@ def _grouped_bars(
             r = part.loc[label]
             x = i + width * (j - (len(present) - 1) / 2)
             err = [[r["mean"] - r["lo"] if np.isfinite(r["lo"]) else 0.0], [r["hi"] - r["mean"] if np.isfinite(r["hi"]) else 0.0]]
-            ax.bar([x], [r["mean"]], width=width * 0.95, color=colour(label), label=label_name(label) if label not in drawn else None, yerr=err, capsize=2, edgecolor="black", lw=0.4)
+            ax.bar(
+                [x],
+                [r["mean"]],
+                width=width * 0.95,
+                color=colour(label),
+                label=label_name(label) if label not in drawn else None,
+                yerr=err,
+                capsize=2,
+                edgecolor="black",
+                lw=0.4,
+            )
             drawn.add(label)
             if values:
                 # Above the error bar, so that the two never overlap.
                 top = r["hi"] if np.isfinite(r["hi"]) else r["mean"]
-                ax.annotate(f"{r['mean']:.3f}", (x, top), xytext=(0, 2), textcoords="offset points", ha="center", va="bottom", fontsize=6, rotation=90)
+                ax.annotate(
+                    f"{r['mean']:.3f}",
+                    (x, top),
+                    xytext=(0, 2),
+                    textcoords="offset points",
+                    ha="center",
+                    va="bottom",
+                    fontsize=6,
+                    rotation=90,
+                )
             if paper and (group, label) in paper:
-                ax.plot([x], [paper[(group, label)]], marker="x", color="black", ms=7, mew=2, ls="none", label=paper_label if not marked else None)
+                ax.plot(
+                    [x],
+                    [paper[(group, label)]],
+                    marker="x",
+                    color="black",
+                    ms=7,
+                    mew=2,
+                    ls="none",
+                    label=paper_label if not marked else None,
+                )
                 marked = True
     if values:
         ax.margins(y=0.18)  # room for the printed values
@@ -320,9 +379,18 @@ def sweep_heatmap(tables: Mapping[str, pd.DataFrame]) -> Figure:
     The tables are `analysis.plots.sweep_table`'s (mean over seeds of each trial's final value).
     Returns the Figure.
     """
-    fig, axes = _grid(max(1, len(tables)), len(tables) or 1, size=(max(4.0, 0.9 * max([t.shape[1] for t in tables.values()] or [1]) + 2.5), 3.4))
+    fig, axes = _grid(
+        max(1, len(tables)), len(tables) or 1, size=(max(4.0, 0.9 * max([t.shape[1] for t in tables.values()] or [1]) + 2.5), 3.4)
+    )
     for ax, (metric, table) in zip(axes, tables.items()):
-        _heatmap(ax, table.to_numpy(dtype=float), [str(i) for i in table.index], [str(c) for c in table.columns], fig, f"final {metric} (mean over seeds)")
+        _heatmap(
+            ax,
+            table.to_numpy(dtype=float),
+            [str(i) for i in table.index],
+            [str(c) for c in table.columns],
+            fig,
+            f"final {metric} (mean over seeds)",
+        )
         ax.set_ylabel(table.index.name or "")
         ax.set_xlabel(table.columns.name or "")
         ax.set_title(metric, fontsize=10)
@@ -360,7 +428,15 @@ def _heatmap(ax: plt.Axes, values: np.ndarray, rows: Sequence[str], cols: Sequen
             for j in range(values.shape[1]):
                 if np.isfinite(values[i, j]):
                     # dark text on viridis' light (high) end, light text on its dark end
-                    ax.text(j, i, f"{values[i, j]:.2g}", ha="center", va="center", fontsize=6, color="black" if values[i, j] > mid else "white")
+                    ax.text(
+                        j,
+                        i,
+                        f"{values[i, j]:.2g}",
+                        ha="center",
+                        va="center",
+                        fontsize=6,
+                        color="black" if values[i, j] > mid else "white",
+                    )
     fig.colorbar(image, ax=ax, label=label)
 
 
@@ -372,7 +448,9 @@ def crossplay_heatmap(matrix: pd.DataFrame, title: str | None = None) -> Figure:
     """
     n_rows, n_cols = matrix.shape
     fig, ax = plt.subplots(figsize=(max(4.0, 0.45 * n_cols + 2.5), max(3.5, 0.4 * n_rows + 2.0)))
-    _heatmap(ax, matrix.to_numpy(dtype=float), [str(i) for i in matrix.index], [str(c) for c in matrix.columns], fig, "mean score")
+    _heatmap(
+        ax, matrix.to_numpy(dtype=float), [str(i) for i in matrix.index], [str(c) for c in matrix.columns], fig, "mean score"
+    )
     ax.set_xlabel(matrix.columns.name or "partner (population B)")
     ax.set_ylabel(matrix.index.name or "ego seat (population A)")
     diagonal = list(matrix.index) == list(matrix.columns)
@@ -387,7 +465,9 @@ def selfplay_heatmap(reports: pd.DataFrame) -> Figure:
     `reports` is `loaders.load_selfplay_reports`'s frame. Returns the Figure.
     """
     table = reports.pivot_table(index="population", columns="partner", values="score", aggfunc="first")
-    passed = reports.assign(passed=reports["passed"].astype(float)).pivot_table(index="population", columns="partner", values="passed", aggfunc="first")
+    passed = reports.assign(passed=reports["passed"].astype(float)).pivot_table(
+        index="population", columns="partner", values="passed", aggfunc="first"
+    )
     fig, ax = plt.subplots(figsize=(max(4.0, 0.35 * table.shape[1] + 2.5), max(2.2, 0.45 * table.shape[0] + 1.6)))
     _heatmap(ax, table.to_numpy(dtype=float), list(table.index), list(table.columns), fig, "self-play score")
     for i, population in enumerate(table.index):
@@ -401,7 +481,9 @@ def selfplay_heatmap(reports: pd.DataFrame) -> Figure:
     return fig
 
 
-def user_study_bars(scores: pd.DataFrame, paper: Mapping[tuple[str, str], float] | None = None, title: str | None = None) -> Figure:
+def user_study_bars(
+    scores: pd.DataFrame, paper: Mapping[tuple[str, str], float] | None = None, title: str | None = None
+) -> Figure:
     """First-try coordination per context, Train (grey) vs Test (orange), with standard-error bars (the paper's fig:userstudy).
 
     `scores` is `summaries.user_study_scores`'s frame (task, context, score, sem);
@@ -419,10 +501,29 @@ def user_study_bars(scores: pd.DataFrame, paper: Mapping[tuple[str, str], float]
         if not present:
             continue
         sem = part.loc[present, "sem"].fillna(0.0).to_numpy()
-        ax.bar(xs, part.loc[present, "score"], width=width * 0.95, yerr=sem, capsize=3, color=TASK_COLOURS[task], edgecolor="black", lw=0.5, label=task.capitalize())
+        ax.bar(
+            xs,
+            part.loc[present, "score"],
+            width=width * 0.95,
+            yerr=sem,
+            capsize=3,
+            color=TASK_COLOURS[task],
+            edgecolor="black",
+            lw=0.5,
+            label=task.capitalize(),
+        )
         for x, c in zip(xs, present):
             if paper and (task, c) in paper:
-                ax.plot([x], [paper[(task, c)]], marker="x", color="black", ms=7, mew=2, ls="none", label="paper figure" if not marked else None)
+                ax.plot(
+                    [x],
+                    [paper[(task, c)]],
+                    marker="x",
+                    color="black",
+                    ms=7,
+                    mew=2,
+                    ls="none",
+                    label="paper figure" if not marked else None,
+                )
                 marked = True
     ax.set_xticks(range(len(contexts)), [f"context {c}" for c in contexts])
     ax.set_ylim(0, 1.15)

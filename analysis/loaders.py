@@ -54,6 +54,7 @@ STEP_COLUMNS: tuple[str, ...] = ("env_steps", "num_env_steps_sampled_lifetime", 
 # folders written before plan.json carried the game's own (`max_score`).
 MAX_SCORE: dict[str, float] = {"bandit": 1.0, "blocks": 20.0, "hanabi": 5.0}
 
+
 def _is_game_dir(path: Path) -> bool:
     return path.is_dir() and (any((path / m).exists() for m in GAME_MARKERS) or any(path.glob(f"*{MARKER_SUFFIX}")))
 
@@ -125,7 +126,15 @@ def load_stage_times(root: str | Path) -> pd.DataFrame:
             except ValueError:  # not a marker this code wrote ("<seconds> s", then items)
                 seconds, covered = float("nan"), []
             done = marker.is_file() and set(items.get(stage, [])) <= set(covered)
-            rows.append({"game": game, "stage": stage, "expected": stage in expected or marker.is_file(), "done": done, "seconds": seconds})
+            rows.append(
+                {
+                    "game": game,
+                    "stage": stage,
+                    "expected": stage in expected or marker.is_file(),
+                    "done": done,
+                    "seconds": seconds,
+                }
+            )
     return pd.DataFrame(rows, columns=STAGE_COLUMNS)
 
 
@@ -225,7 +234,9 @@ def load_sweep(experiment: str | Path) -> pd.DataFrame:
     """
     trials = _egos_in(Path(experiment))
     if not trials:
-        raise ValueError(f"{str(experiment)!r} holds no trained-ego trial (no */config.yaml); expected a sweep's STORAGE/NAME folder")
+        raise ValueError(
+            f"{str(experiment)!r} holds no trained-ego trial (no */config.yaml); expected a sweep's STORAGE/NAME folder"
+        )
     return load_trial_curves(trials)
 
 
@@ -288,7 +299,16 @@ def _trial_curve(trial: Path, game: str | None = None) -> pd.DataFrame:
     return pd.concat([ident, metrics], axis=1).reset_index(drop=True)
 
 
-EVAL_COLUMNS = [*TRIAL_COLUMNS, "partner", "mean_return", "stderr", "exact_return", "marginal_distance", "marginal_distance_all", "wall_s"]
+EVAL_COLUMNS = [
+    *TRIAL_COLUMNS,
+    "partner",
+    "mean_return",
+    "stderr",
+    "exact_return",
+    "marginal_distance",
+    "marginal_distance_all",
+    "wall_s",
+]
 
 
 def load_evals(root: str | Path) -> pd.DataFrame:
@@ -339,7 +359,11 @@ def read_stage_csv(path: str | Path, game: str = "") -> pd.DataFrame:
     path = Path(path)
     table = pd.read_csv(path)
     population, label = split_experiment(path.stem)
-    labels = [label] * len(table) if label else [methods.row_label(m, lam) for m, lam in zip(table["method"], table.get("lam", [0.0] * len(table)))]
+    labels = (
+        [label] * len(table)
+        if label
+        else [methods.row_label(m, lam) for m, lam in zip(table["method"], table.get("lam", [0.0] * len(table)))]
+    )
     table.insert(0, "label", labels)
     table.insert(0, "population", population)
     table.insert(0, "game", game)
@@ -363,7 +387,23 @@ def _read_tables(root: str | Path, folder: str) -> list[pd.DataFrame]:
     return frames
 
 
-ADAPT_COLUMNS = ["game", "population", "label", "run", "method", "lam", "z_dim", "seed", "partner", "steps", "mean_return", "stderr", "exact_return", "trial", "experiment"]
+ADAPT_COLUMNS = [
+    "game",
+    "population",
+    "label",
+    "run",
+    "method",
+    "lam",
+    "z_dim",
+    "seed",
+    "partner",
+    "steps",
+    "mean_return",
+    "stderr",
+    "exact_return",
+    "trial",
+    "experiment",
+]
 
 
 def load_adaptation(root: str | Path) -> pd.DataFrame:
@@ -375,7 +415,21 @@ def load_adaptation(root: str | Path) -> pd.DataFrame:
     return _concat(_read_tables(root, ADAPTATION_DIR), ADAPT_COLUMNS)
 
 
-ZEROSHOT_COLUMNS = ["game", "population", "label", "run", "method", "lam", "seed", "partner", "mean_return", "stderr", "exact_return", "trial", "experiment"]
+ZEROSHOT_COLUMNS = [
+    "game",
+    "population",
+    "label",
+    "run",
+    "method",
+    "lam",
+    "seed",
+    "partner",
+    "mean_return",
+    "stderr",
+    "exact_return",
+    "trial",
+    "experiment",
+]
 
 
 def load_zeroshot(root: str | Path) -> pd.DataFrame:
@@ -383,7 +437,23 @@ def load_zeroshot(root: str | Path) -> pd.DataFrame:
     return _concat(_read_tables(root, ZEROSHOT_DIR), ZEROSHOT_COLUMNS)
 
 
-MARGINAL_COLUMNS = ["game", "population", "label", "run", "env", "env_config", "method", "lam", "z_dim", "seed", "distance", "distance_all_states", "states", "experiment", "trial"]
+MARGINAL_COLUMNS = [
+    "game",
+    "population",
+    "label",
+    "run",
+    "env",
+    "env_config",
+    "method",
+    "lam",
+    "z_dim",
+    "seed",
+    "distance",
+    "distance_all_states",
+    "states",
+    "experiment",
+    "trial",
+]
 
 
 def load_marginals(root: str | Path) -> pd.DataFrame:
@@ -401,7 +471,9 @@ def load_marginals(root: str | Path) -> pd.DataFrame:
         if table.empty:
             continue
         table.insert(0, "game", game_of(game_dir))
-        table["experiment"] = [experiment_of(str(r)).name for r in table["run"]]  # from the path: replica folders sit a level deeper
+        table["experiment"] = [
+            experiment_of(str(r)).name for r in table["run"]
+        ]  # from the path: replica folders sit a level deeper
         table["population"] = [split_experiment(e)[0] for e in table["experiment"]]
         table["label"] = [split_experiment(e)[1] for e in table["experiment"]]
         table["trial"] = [trial_name(str(r)) for r in table["run"]]
@@ -410,7 +482,19 @@ def load_marginals(root: str | Path) -> pd.DataFrame:
     return out[[c for c in MARGINAL_COLUMNS if c in out.columns] + [c for c in out.columns if c not in MARGINAL_COLUMNS]]
 
 
-SELFPLAY_COLUMNS = ["game", "population", "partner", "split", "pair", "seed", "passed", "score", "steps_to_gate", "env_steps", "wall_s"]
+SELFPLAY_COLUMNS = [
+    "game",
+    "population",
+    "partner",
+    "split",
+    "pair",
+    "seed",
+    "passed",
+    "score",
+    "steps_to_gate",
+    "env_steps",
+    "wall_s",
+]
 
 
 def load_selfplay_reports(root: str | Path) -> pd.DataFrame:
@@ -478,5 +562,7 @@ def load_user_study_csvs(paths: str | Path | Iterable[str | Path] | None = None)
         df["pair_id"] = [f"{path.name}:{p}" for p in df["pair"]]
         frames.append(df)
     if not frames:
-        return _empty(["pair", "task", "context", "try", "action_1", "action_2", "arm_1", "arm_2", "coordinated", "source", "pair_id"])
+        return _empty(
+            ["pair", "task", "context", "try", "action_1", "action_2", "arm_1", "arm_2", "coordinated", "source", "pair_id"]
+        )
     return pd.concat(frames, ignore_index=True)

@@ -193,7 +193,11 @@ MARGINALS: dict[tuple[str, str], PaperNumber] = {
 }
 
 MARGINAL_CLAIMS: tuple[Claim, ...] = (
-    Claim("lam05-closest", "λ=0.5 gives task-module outputs closest to the oracle marginals.", "Sec. 5, Contextual Bandit and Block Placing paragraphs; fig:marginals"),
+    Claim(
+        "lam05-closest",
+        "λ=0.5 gives task-module outputs closest to the oracle marginals.",
+        "Sec. 5, Contextual Bandit and Block Placing paragraphs; fig:marginals",
+    ),
     Claim("lam0-below-baselines", "Even λ=0.0 is closer to the true marginals than the baselines.", "fig:marginals caption"),
 )
 
@@ -211,7 +215,11 @@ ZEROSHOT: dict[tuple[str, str], PaperNumber] = {
     ("blocks-perm", "no_task_logits"): PaperNumber(13.17, _ZS, note="score out of 20"),
 }
 ZEROSHOT_CLAIMS: tuple[Claim, ...] = (
-    Claim("zeroshot-beats-modular", "On the new task, ours (λ=0.5) scores higher zero-shot than BaselineModular.", "Sec. 5; fig:zeroshot"),
+    Claim(
+        "zeroshot-beats-modular",
+        "On the new task, ours (λ=0.5) scores higher zero-shot than BaselineModular.",
+        "Sec. 5; fig:zeroshot",
+    ),
 )
 
 # --- fig:userstudy ---------------------------------------------------------------------------------
@@ -233,8 +241,14 @@ USER_STUDY_PAIRS = PaperNumber(23, "Sec. 4.1 (User Study) and appendix table tab
 # table gives Train-A 22/22 and Test-A 21/22; the figure shows Train-A 0.9545 and Test-A 1).
 USER_STUDY_FIGURE_RECIPE = "drop pair 10, standard error with ddof=0, Train-A and Test-A bars exchanged"
 USER_STUDY_CLAIMS: tuple[Claim, ...] = (
-    Claim("test-c-above-test-b", "Pairs coordinate better on Test-C than on Test-B on the first try (conventions carry over where the optimal set is unchanged).", "Sec. 4.1, Results"),
-    Claim("train-a-easy", "Train-A (one good arm) is easy; Train-B and Train-C (two good arms) score lower.", "Sec. 4.1, Results"),
+    Claim(
+        "test-c-above-test-b",
+        "Pairs coordinate better on Test-C than on Test-B on the first try (conventions carry over where the optimal set is unchanged).",
+        "Sec. 4.1, Results",
+    ),
+    Claim(
+        "train-a-easy", "Train-A (one good arm) is easy; Train-B and Train-C (two good arms) score lower.", "Sec. 4.1, Results"
+    ),
 )
 
 # --- set-up counts ---------------------------------------------------------------------------------

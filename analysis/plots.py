@@ -82,7 +82,9 @@ def _plot_csv(csv: Path) -> Path:
     """`<name>.png` beside an adaptation or zero-shot CSV."""
     stage = _stage_of(csv) if csv.suffix == ".csv" else None
     if stage is None:
-        raise ValueError(f"{str(csv)!r} is not an adaptation or zero-shot CSV with rows (columns {sorted(STAGE_COLUMNS)}, plus steps for adaptation); expected {EXPECTED}")
+        raise ValueError(
+            f"{str(csv)!r} is not an adaptation or zero-shot CSV with rows (columns {sorted(STAGE_COLUMNS)}, plus steps for adaptation); expected {EXPECTED}"
+        )
     table = loaders.read_stage_csv(csv)
     if stage == "adaptation":
         fig = figures.adaptation_curves(table, note=figures.band_caption(table, "Lines: mean over seeds; bands"))
@@ -130,7 +132,14 @@ def sweep_table(summaries: pd.DataFrame, metric: str) -> pd.DataFrame:
     data = summaries.dropna(subset=[metric]).rename(columns=lambda c: c.removeprefix(CONFIG_PREFIX))
     rows, cols = keys[0], keys[1:]
     # One further key: its values head the columns; several: their combinations, each value named.
-    data["_column"] = [str(v[0]) if len(cols) == 1 else ", ".join(f"{k}={x}" for k, x in zip(cols, v)) for v in data[cols].itertuples(index=False)] if cols else metric
+    data["_column"] = (
+        [
+            str(v[0]) if len(cols) == 1 else ", ".join(f"{k}={x}" for k, x in zip(cols, v))
+            for v in data[cols].itertuples(index=False)
+        ]
+        if cols
+        else metric
+    )
     table = data.pivot_table(index=rows, columns="_column", values=metric, aggfunc="mean")
     table.columns.name = ", ".join(cols)
     return table

@@ -78,7 +78,9 @@ def seed_summary(df: pd.DataFrame, by: Sequence[str], value: str) -> pd.DataFram
     return summarise(seed_means(df, by, value), by, value)
 
 
-def paired_difference(df: pd.DataFrame, a: str, b: str, value: str, within: Sequence[str] = ("partner",), label: str = "label") -> tuple[float, float, float, int]:
+def paired_difference(
+    df: pd.DataFrame, a: str, b: str, value: str, within: Sequence[str] = ("partner",), label: str = "label"
+) -> tuple[float, float, float, int]:
     """Mean difference A - B of `value` over the units A and B share, its 95% t-interval over seeds and the seed count.
 
     `df` holds the rows of one population; `label` tells A's rows (`a`) from B's (`b`).
@@ -154,7 +156,15 @@ def adaptation_auc(curves: pd.DataFrame) -> pd.DataFrame:
     rows = []
     for key, g in data.groupby(CURVE_KEYS, sort=True, dropna=False):
         rows.append(
-            (*key, float(g["value"].mean()), float(g["value"].iloc[0]), float(g["value"].iloc[-1]), len(g), int(g["steps"].iloc[-1]), g["value_source"].iloc[0])
+            (
+                *key,
+                float(g["value"].mean()),
+                float(g["value"].iloc[0]),
+                float(g["value"].iloc[-1]),
+                len(g),
+                int(g["steps"].iloc[-1]),
+                g["value_source"].iloc[0],
+            )
         )
     return pd.DataFrame(rows, columns=columns)
 
@@ -169,7 +179,9 @@ def bayes_optimal_return(num_contexts: int, symmetric: int, episodes: int) -> fl
     with probability (1 - 1/C)^t, and the return is (C - m)/C + m/C * (1 - (1 - 1/C)^t / 2).
     """
     if not 0 <= symmetric <= num_contexts or num_contexts < 1 or episodes < 0:
-        raise ValueError(f"need 0 <= symmetric <= num_contexts, num_contexts >= 1, episodes >= 0; got {symmetric}, {num_contexts}, {episodes}")
+        raise ValueError(
+            f"need 0 <= symmetric <= num_contexts, num_contexts >= 1, episodes >= 0; got {symmetric}, {num_contexts}, {episodes}"
+        )
     unseen = (1.0 - 1.0 / num_contexts) ** episodes
     return (num_contexts - symmetric) / num_contexts + symmetric / num_contexts * (1.0 - unseen / 2.0)
 
@@ -197,7 +209,9 @@ def curve_band(curves: pd.DataFrame) -> pd.DataFrame:
 # --- user study --------------------------------------------------------------------------
 
 
-def user_study_scores(study: pd.DataFrame, exclude_pairs: Iterable[int] = (), ddof: int = 1, swap_a: bool = False) -> pd.DataFrame:
+def user_study_scores(
+    study: pd.DataFrame, exclude_pairs: Iterable[int] = (), ddof: int = 1, swap_a: bool = False
+) -> pd.DataFrame:
     """First-try coordination per (task, context): score, standard error, n and the count of coordinated pairs.
 
     `study` is a frame from `loaders.load_user_study_csvs` (or `load_user_study`). The score
@@ -212,7 +226,9 @@ def user_study_scores(study: pd.DataFrame, exclude_pairs: Iterable[int] = (), dd
         a = out["context"] == "A"
         out.loc[a, "task"] = out.loc[a, "task"].map({"train": "test", "test": "train"})
         rank = {key: i for i, key in enumerate((t, c) for t in TASKS for c in CONTEXTS)}
-        out = out.iloc[sorted(range(len(out)), key=lambda i: rank[(out.at[i, "task"], out.at[i, "context"])])].reset_index(drop=True)
+        out = out.iloc[sorted(range(len(out)), key=lambda i: rank[(out.at[i, "task"], out.at[i, "context"])])].reset_index(
+            drop=True
+        )
     return out
 
 
@@ -225,7 +241,9 @@ def paper_figure_recipe(study: pd.DataFrame) -> pd.DataFrame:
     return user_study_scores(study, **PAPER_FIGURE_OPTIONS)
 
 
-def first_try_difference(study: pd.DataFrame, a: tuple[str, str], b: tuple[str, str], pair: str = "pair_id") -> tuple[float, float, float, int]:
+def first_try_difference(
+    study: pd.DataFrame, a: tuple[str, str], b: tuple[str, str], pair: str = "pair_id"
+) -> tuple[float, float, float, int]:
     """Paired difference of first-try coordination between the (task, context) cells `a` and `b`: mean, 95% t-interval, pairs.
 
     `study` is a frame from `loaders.load_user_study_csvs`. Every pair plays every cell, so

@@ -49,7 +49,13 @@ def write_result(name: str, data: dict[str, Any]) -> Path:
     command = "OMP_NUM_THREADS=1 python " + " ".join(sys.argv)
     RESULTS.mkdir(parents=True, exist_ok=True)
     path = RESULTS / f"{name}.json"
-    record = {"benchmark": name, "date": dt.datetime.now().isoformat(timespec="seconds"), "command": command, "machine": machine(), **data}
+    record = {
+        "benchmark": name,
+        "date": dt.datetime.now().isoformat(timespec="seconds"),
+        "command": command,
+        "machine": machine(),
+        **data,
+    }
     path.write_text(json.dumps(record, indent=2) + "\n")
     return path
 

@@ -41,7 +41,9 @@ def _tune_config(reuse: bool) -> Any:
 def stage(pairs: int, reuse: bool) -> dict:
     """Train a `pairs`-pair bandit self-play population from an empty folder; wall seconds and workers used."""
     tune.TuneConfig = _tune_config(reuse)
-    raw = config_files.load(config_file("selfplay_bandit.yaml"), [f"train_pairs={pairs}", "test_pairs=0", "name=reuse-bench"], schema=SelfPlayConfig)
+    raw = config_files.load(
+        config_file("selfplay_bandit.yaml"), [f"train_pairs={pairs}", "test_pairs=0", "name=reuse-bench"], schema=SelfPlayConfig
+    )
     with tempfile.TemporaryDirectory() as tmp:
         start = time.perf_counter()
         _, report = train_population(raw, out=Path(tmp) / "pops", storage=Path(tmp) / "runs")

@@ -69,7 +69,14 @@ def main() -> None:
     try:
         for game in args.games:
             t = update_times(population_of(game, tmp), args.repeats, kernel)
-            rows.append({"env": game, "foreach_ms": 1e3 * t["foreach"], "fused_ms": 1e3 * t["fused"], "foreach/fused": t["foreach"] / t["fused"]})
+            rows.append(
+                {
+                    "env": game,
+                    "foreach_ms": 1e3 * t["foreach"],
+                    "fused_ms": 1e3 * t["fused"],
+                    "foreach/fused": t["foreach"] / t["fused"],
+                }
+            )
             print(pd.DataFrame(rows).to_string(index=False, float_format="{:.2f}".format), flush=True)
     finally:
         (tmp / "blocks-perm4.json").unlink(missing_ok=True)

@@ -23,7 +23,13 @@ METRICS = {"adaptation": ("auc", "start", "end"), "zeroshot": ("return",), "marg
 
 def _numbers(summary: dict) -> dict[tuple[str, str, str, str], dict]:
     """(section, population, method, metric) -> its {mean, lo, hi, n}."""
-    return {(section, row["population"], row["method"], metric): row[metric] for section, metrics in METRICS.items() for row in summary.get(section, []) for metric in metrics if metric in row}
+    return {
+        (section, row["population"], row["method"], metric): row[metric]
+        for section, metrics in METRICS.items()
+        for row in summary.get(section, [])
+        for metric in metrics
+        if metric in row
+    }
 
 
 def compare(old: dict, new: dict) -> list[dict]:
@@ -32,12 +38,18 @@ def compare(old: dict, new: dict) -> list[dict]:
     rows = []
     for key in sorted(a.keys() & b.keys()):
         o, n = a[key], b[key]
-        rows.append({
-            "section": key[0], "population": key[1], "method": key[2], "metric": key[3],
-            "old": o, "new": n,
-            "new_mean_inside_old_interval": bool(o["lo"] <= n["mean"] <= o["hi"]),
-            "intervals_overlap": bool(o["lo"] <= n["hi"] and n["lo"] <= o["hi"]),
-        })
+        rows.append(
+            {
+                "section": key[0],
+                "population": key[1],
+                "method": key[2],
+                "metric": key[3],
+                "old": o,
+                "new": n,
+                "new_mean_inside_old_interval": bool(o["lo"] <= n["mean"] <= o["hi"]),
+                "intervals_overlap": bool(o["lo"] <= n["hi"] and n["lo"] <= o["hi"]),
+            }
+        )
     return rows
 
 
@@ -55,11 +67,25 @@ def main() -> None:
     fmt = lambda ci: f"{ci['mean']:.3f} [{ci['lo']:.3f}, {ci['hi']:.3f}] n={ci['n']}"  # noqa: E731
     print(f"{'section':<10} {'population':<22} {'method':<22} {'metric':<8} {'old':<30} {'new':<30} inside overlap")
     for r in rows:
-        print(f"{r['section']:<10} {r['population']:<22} {r['method']:<22} {r['metric']:<8} {fmt(r['old']):<30} {fmt(r['new']):<30} {'yes' if r['new_mean_inside_old_interval'] else 'NO':<6} {'yes' if r['intervals_overlap'] else 'NO'}")
+        print(
+            f"{r['section']:<10} {r['population']:<22} {r['method']:<22} {r['metric']:<8} {fmt(r['old']):<30} {fmt(r['new']):<30} {'yes' if r['new_mean_inside_old_interval'] else 'NO':<6} {'yes' if r['intervals_overlap'] else 'NO'}"
+        )
     inside = sum(r["new_mean_inside_old_interval"] for r in rows)
     overlap = sum(r["intervals_overlap"] for r in rows)
     print(f"\n{len(rows)} numbers: new mean inside the old interval {inside}, intervals overlap {overlap}")
-    path = write_result(args.name, {"old": str(args.old), "new": str(args.new), "old_stages": old.get("stages"), "new_stages": new.get("stages"), "numbers": len(rows), "inside": inside, "overlap": overlap, "rows": rows})
+    path = write_result(
+        args.name,
+        {
+            "old": str(args.old),
+            "new": str(args.new),
+            "old_stages": old.get("stages"),
+            "new_stages": new.get("stages"),
+            "numbers": len(rows),
+            "inside": inside,
+            "overlap": overlap,
+            "rows": rows,
+        },
+    )
     print(f"wrote {path}")
 
 

@@ -74,7 +74,9 @@ def main() -> None:
     for name, config in GAMES.items():
         raw = max(raw_steps_per_second(name, config, args.steps, seed=r) for r in range(args.repeats))
         adapted = max(adapter_steps_per_second(name, config, args.steps, seed=r) for r in range(args.repeats))
-        rows.append({"env": name, "config": config, "raw_moves_per_s": raw, "adapter_moves_per_s": adapted, "adapter/raw": adapted / raw})
+        rows.append(
+            {"env": name, "config": config, "raw_moves_per_s": raw, "adapter_moves_per_s": adapted, "adapter/raw": adapted / raw}
+        )
     table = pd.DataFrame(rows)
     print(table.to_string(index=False, float_format="{:.0f}".format, formatters={"adapter/raw": "{:.2f}".format}))
     path = write_result("env_throughput", {"steps": args.steps, "repeats": args.repeats, "rows": rows})

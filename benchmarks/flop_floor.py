@@ -97,12 +97,14 @@ def measure(game: str, repeats: int, folder: Path) -> dict[str, Any]:
     }
     plan_steps = plan_ego_steps(game)
     cores = int(ray.cluster_resources().get("CPU", 1))
-    row.update({
-        "plan_ego_steps": plan_steps,
-        "plan_train_floor_min": plan_steps * per_step / (cores * peak * 1e9) / 60,
-        "plan_target_min": TARGET_MINUTES[game],
-        "trial_steps_per_s_floor": peak * 1e9 / per_step,
-    })
+    row.update(
+        {
+            "plan_ego_steps": plan_steps,
+            "plan_train_floor_min": plan_steps * per_step / (cores * peak * 1e9) / 60,
+            "plan_target_min": TARGET_MINUTES[game],
+            "trial_steps_per_s_floor": peak * 1e9 / per_step,
+        }
+    )
     return row
 
 

@@ -48,14 +48,18 @@ def summary(root: Path) -> dict:
     if not training.empty:
         last = training.groupby(["population", "label", "run"])["steps"].max()
         for (population, label), steps in last.groupby(["population", "label"]):
-            out["training"].append({"population": population, "method": label, "env_steps": sorted(int(s) for s in steps.unique())})
+            out["training"].append(
+                {"population": population, "method": label, "env_steps": sorted(int(s) for s in steps.unique())}
+            )
     curves = loaders.load_adaptation(root)
     if not curves.empty:
         aucs = adaptation_auc(curves)
         cis = {key: _cis(aucs, key) for key in ("auc", "start", "end")}
         for population, label in sorted(cis["auc"]):
             row = {"population": population, "method": label, **{key: cis[key][(population, label)] for key in cis}}
-            steps = sorted(curves.loc[(curves["population"] == population) & (curves["label"] == label), "steps"].unique().tolist())
+            steps = sorted(
+                curves.loc[(curves["population"] == population) & (curves["label"] == label), "steps"].unique().tolist()
+            )
             bayes = _bayes_auc(population, steps)
             if bayes is not None:
                 row["bayes_optimal_auc"] = bayes
@@ -89,7 +93,10 @@ def main() -> None:
     for section, rows in data.items():
         print(f"\n{section}")
         for row in rows:
-            cells = [f"{k} {_fmt(v)}" if isinstance(v, dict) else f"{k} {v:.3f}" if isinstance(v, float) else f"{k} {v}" for k, v in row.items()]
+            cells = [
+                f"{k} {_fmt(v)}" if isinstance(v, dict) else f"{k} {v:.3f}" if isinstance(v, float) else f"{k} {v}"
+                for k, v in row.items()
+            ]
             print("  " + " | ".join(cells))
     stages = loaders.load_stage_times(args.root).to_dict(orient="records")
     plan = loaders.read_plan(args.root)

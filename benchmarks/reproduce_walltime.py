@@ -42,7 +42,17 @@ SLICES = {
     },
     "blocks": {
         "what": "blocks hand-designed partners, ours lam 0.5 and BaselineAgg (+ scratch, picked head), 50k-step egos, 3 seeds: train, adapt",
-        "args": ["blocks", "--populations", "blocks-perm", "--methods", "modular-lam0.5", "agg", "--train-steps", "50000", "--no-zeroshot"],
+        "args": [
+            "blocks",
+            "--populations",
+            "blocks-perm",
+            "--methods",
+            "modular-lam0.5",
+            "agg",
+            "--train-steps",
+            "50000",
+            "--no-zeroshot",
+        ],
     },
 }
 STAGE_RUNS = {"train": "train-stage-", "adapt": "adapt-stage-", "zeroshot": "zeroshot-stage-"}
@@ -57,7 +67,9 @@ def worktree(commit: str, work: Path) -> Path:
     """A checkout of `commit` (a git worktree, made once) whose rllib_conv reads its own shipped configs and data."""
     path = work / f"old-{commit}"
     if not (path / "rllib_conv").is_dir():
-        subprocess.run(["git", "-C", str(REPO), "worktree", "add", "--detach", str(path), commit], check=True, capture_output=True)
+        subprocess.run(
+            ["git", "-C", str(REPO), "worktree", "add", "--detach", str(path), commit], check=True, capture_output=True
+        )
     for package, folder in DATA_PACKAGES.items():
         link = path / package
         if (path / folder).is_dir() and not link.exists():
@@ -80,7 +92,9 @@ def run_slice(code: Path, args: list[str], out: Path) -> dict[str, Any]:
     env = {**os.environ, "PYTHONPATH": str(code), "OMP_NUM_THREADS": "1", "RAY_ADDRESS": ""}
     # Run by its file, not with -m: it must start in `code`'s folder (an old commit may read its
     # plans by relative path), where `benchmarks` would be that commit's; it imports only rllib_conv.
-    proc = subprocess.run([sys.executable, str(SLICE_SCRIPT), args[0], str(out), *args[1:]], cwd=code, env=env, capture_output=True, text=True)
+    proc = subprocess.run(
+        [sys.executable, str(SLICE_SCRIPT), args[0], str(out), *args[1:]], cwd=code, env=env, capture_output=True, text=True
+    )
     line = next((ln for ln in proc.stdout.splitlines() if ln.startswith("SLICE ")), None)
     if proc.returncode != 0 or line is None:
         raise RuntimeError(f"slice {args} with {code} failed:\n{(proc.stdout + proc.stderr)[-4000:]}")
@@ -88,7 +102,9 @@ def run_slice(code: Path, args: list[str], out: Path) -> dict[str, Any]:
 
 
 def _last_result(trial: Path) -> dict[str, Any]:
-    lines = [ln for ln in (trial / "result.json").read_text().splitlines() if ln.strip()] if (trial / "result.json").is_file() else []
+    lines = (
+        [ln for ln in (trial / "result.json").read_text().splitlines() if ln.strip()] if (trial / "result.json").is_file() else []
+    )
     return json.loads(lines[-1]) if lines else {}
 
 
@@ -102,25 +118,41 @@ def breakdown(game_dir: Path, stages: dict[str, float], cores: int) -> dict[str,
             continue
         parts = {kind: sum(r.get(f"time/{kind}", 0.0) for r in results) for kind in ("setup", "iterate", "evaluate")}
         busy = parts["setup"] + sum(r.get("time_total_s", 0.0) for r in results)
-        out[stage] = {"trials": len(results), **{f"{k}_core_s": v for k, v in parts.items()}, "tune_and_idle_core_s": cores * stages[stage] - busy}
+        out[stage] = {
+            "trials": len(results),
+            **{f"{k}_core_s": v for k, v in parts.items()},
+            "tune_and_idle_core_s": cores * stages[stage] - busy,
+        }
     return out
 
 
 def _print_rows(rows: list[dict[str, Any]]) -> None:
-    print(f"{'slice':8} {'stage':9} {'old s':>8} {'new s':>8} {'ratio':>6}   new core-seconds: setup / iterate / evaluate / Tune+idle")
+    print(
+        f"{'slice':8} {'stage':9} {'old s':>8} {'new s':>8} {'ratio':>6}   new core-seconds: setup / iterate / evaluate / Tune+idle"
+    )
     for row in rows:
         for stage, old_s in row["old_stages_s"].items():
             new_s = row["new_stages_s"].get(stage, float("nan"))
             b = row["new_breakdown"].get(stage)
-            split = f"{b['setup_core_s']:.0f} / {b['iterate_core_s']:.0f} / {b['evaluate_core_s']:.0f} / {b['tune_and_idle_core_s']:.0f}" if b else ""
-            print(f"{row['slice']:8} {stage:9} {old_s:8.0f} {new_s:8.0f} {old_s / new_s if new_s else float('nan'):6.1f}   {split}")
+            split = (
+                f"{b['setup_core_s']:.0f} / {b['iterate_core_s']:.0f} / {b['evaluate_core_s']:.0f} / {b['tune_and_idle_core_s']:.0f}"
+                if b
+                else ""
+            )
+            print(
+                f"{row['slice']:8} {stage:9} {old_s:8.0f} {new_s:8.0f} {old_s / new_s if new_s else float('nan'):6.1f}   {split}"
+            )
         print(f"{row['slice']:8} {'total':9} {row['old_wall_s']:8.0f} {row['new_wall_s']:8.0f} {row['speedup']:6.1f}")
 
 
 def measured(game_dir: Path, old_summary: Path, cores: int, name: str | None = None) -> None:
     """The full plan of `game_dir` (already run) against the stage times of `old_summary`; print and write them (to `name`, default `reproduce_walltime_<game>_full`)."""
     # A stage's seconds count where recorded: a folder grown later (more seeds) marks its earlier stages not done.
-    old = {s["stage"]: s["seconds"] for s in json.loads(old_summary.read_text())["stages"] if math.isfinite(s.get("seconds") or math.nan)}
+    old = {
+        s["stage"]: s["seconds"]
+        for s in json.loads(old_summary.read_text())["stages"]
+        if math.isfinite(s.get("seconds") or math.nan)
+    }
     new = {s["stage"]: s["seconds"] for s in loaders.load_stage_times(game_dir).to_dict(orient="records") if s.get("done")}
     row = {
         "slice": game_dir.name,
@@ -133,17 +165,25 @@ def measured(game_dir: Path, old_summary: Path, cores: int, name: str | None = N
         "new_breakdown": breakdown(game_dir, new, cores),
     }
     _print_rows([row])
-    print(f"wrote {write_result(name or f'reproduce_walltime_{game_dir.name}_full', {'old_summary': str(old_summary), 'cores': cores, 'slices': [row]})}")
+    print(
+        f"wrote {write_result(name or f'reproduce_walltime_{game_dir.name}_full', {'old_summary': str(old_summary), 'cores': cores, 'slices': [row]})}"
+    )
 
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--old-commit", default=OLD_COMMIT)
     p.add_argument("--slices", nargs="+", default=list(SLICES), choices=list(SLICES))
-    p.add_argument("--work", type=Path, default=None, help="where the old worktree and the slices' folders go (default: a temp dir)")
+    p.add_argument(
+        "--work", type=Path, default=None, help="where the old worktree and the slices' folders go (default: a temp dir)"
+    )
     p.add_argument("--measured", type=Path, help="run nothing: a reproduce game folder the new code already ran in full")
     p.add_argument("--old-summary", type=Path, help="with --measured: the old code's reproduce_summary JSON (its stage times)")
-    p.add_argument("--name", default=None, help="the results file, benchmarks/results/<NAME>.json (default: reproduce_walltime, or with --measured reproduce_walltime_<game>_full)")
+    p.add_argument(
+        "--name",
+        default=None,
+        help="the results file, benchmarks/results/<NAME>.json (default: reproduce_walltime, or with --measured reproduce_walltime_<game>_full)",
+    )
     args = p.parse_args()
     cores = os.cpu_count() or 1
     if args.measured or args.old_summary:
@@ -172,7 +212,10 @@ def main() -> None:
                 "new_breakdown": breakdown(game_dir, after["stages"], cores),
             }
         )
-        print(f"{name}: old {before['wall_s']:.0f} s, new {after['wall_s']:.0f} s, {before['wall_s'] / after['wall_s']:.1f}x faster", flush=True)
+        print(
+            f"{name}: old {before['wall_s']:.0f} s, new {after['wall_s']:.0f} s, {before['wall_s'] / after['wall_s']:.1f}x faster",
+            flush=True,
+        )
     print()
     _print_rows(rows)
     name = args.name or "reproduce_walltime"

@@ -89,7 +89,13 @@ def rllib_default(game: str, cfg: SelfPlayConfig, seconds: float) -> dict:
             seats[a] = PolicyPartner(a, logits, greedy=True, seed=i)
         with torch.no_grad():
             score = float(play_episodes(envs.make(game, **cfg.env_config), seats, 1000, 0).mean())
-        return {"env_steps": int(steps), "seconds": elapsed, "steps_per_s": steps / elapsed, "final_score": score, "passed": score >= cfg.gate.score}
+        return {
+            "env_steps": int(steps),
+            "seconds": elapsed,
+            "steps_per_s": steps / elapsed,
+            "final_score": score,
+            "passed": score >= cfg.gate.score,
+        }
     finally:
         algo.stop()
 
@@ -104,7 +110,9 @@ def main() -> None:
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
     rows = []
     for game in args.games:
-        cfg = config_files.validate(config_files.load(config_file(f"selfplay_{game}.yaml"), schema=SelfPlayConfig), schema=SelfPlayConfig)[0]
+        cfg = config_files.validate(
+            config_files.load(config_file(f"selfplay_{game}.yaml"), schema=SelfPlayConfig), schema=SelfPlayConfig
+        )[0]
         mine = ours(game, args.pairs, args.budget)
         default = rllib_default(game, cfg, args.default_seconds)
         rows.append({"game": game, "gate": cfg.gate.score, "ours": mine, "rllib_default": default})
@@ -127,7 +135,9 @@ def main() -> None:
         print(table.to_string(index=False, float_format="{:.2f}".format), flush=True)
         # After every game, so an interrupted run keeps the games it finished; one file per
         # set of games, so a run on some games keeps the results of the others.
-        path = write_result("selfplay_" + "_".join(args.games), {"rows": rows, "pairs": args.pairs, "default_seconds": args.default_seconds})
+        path = write_result(
+            "selfplay_" + "_".join(args.games), {"rows": rows, "pairs": args.pairs, "default_seconds": args.default_seconds}
+        )
         print(f"wrote {path}")
     ray.shutdown()
 

@@ -33,7 +33,18 @@ OLD_COMMIT = "66f3779"  # before self-play sampled through BatchedEnvRunner and 
 def train(code: Path, game: str, out: Path) -> float:
     """Train the shipped self-play population of `game` with the rllib_conv of `code` into `out`; wall seconds."""
     env = {**os.environ, "PYTHONPATH": str(code), "OMP_NUM_THREADS": "1", "RAY_ADDRESS": ""}
-    cmd = [sys.executable, "-m", "rllib_conv.cli", "partners", "train", f"tune_configs/selfplay_{game}.yaml", "--out", str(out / "pops"), "--storage", str(out / "runs")]
+    cmd = [
+        sys.executable,
+        "-m",
+        "rllib_conv.cli",
+        "partners",
+        "train",
+        f"tune_configs/selfplay_{game}.yaml",
+        "--out",
+        str(out / "pops"),
+        "--storage",
+        str(out / "runs"),
+    ]
     start = time.perf_counter()
     proc = subprocess.run(cmd, cwd=code, env=env, capture_output=True, text=True)
     if proc.returncode != 0:
@@ -51,7 +62,10 @@ def same_pairs(runs: list[Path]) -> int:
     """How many pairs' kept seats have exactly the same weights in every one of `runs`."""
     weights = [seat_weights(r) for r in runs]
     return sum(
-        all(name in w and all(np.array_equal(np.asarray(w[name][k]), np.asarray(v)) for k, v in weights[0][name].items()) for w in weights[1:])
+        all(
+            name in w and all(np.array_equal(np.asarray(w[name][k]), np.asarray(v)) for k, v in weights[0][name].items())
+            for w in weights[1:]
+        )
         for name in weights[0]
     )
 
@@ -81,7 +95,9 @@ def main() -> None:
         "same_weights_every_run": {w: same_pairs(f) for w, f in folders.items()},
     }
     print(summary)
-    print(f"wrote {write_result(f'selfplay_stage_{args.game}', {'old_commit': args.old_commit, 'rounds': args.rounds, 'rows': rows, 'summary': summary})}")
+    print(
+        f"wrote {write_result(f'selfplay_stage_{args.game}', {'old_commit': args.old_commit, 'rounds': args.rounds, 'rows': rows, 'summary': summary})}"
+    )
 
 
 if __name__ == "__main__":

@@ -46,7 +46,12 @@ print("STAGE " + json.dumps({"wall_s": wall, "cpus": cpus}))
 
 def _run(storage: Path, address: str, experiments: int, timesteps: int) -> dict[str, Any]:
     env = {**os.environ, "OMP_NUM_THREADS": "1", "RAY_ADDRESS": ""}
-    proc = subprocess.run([sys.executable, "-c", STAGE, str(storage), address, str(experiments), str(timesteps)], env=env, capture_output=True, text=True)
+    proc = subprocess.run(
+        [sys.executable, "-c", STAGE, str(storage), address, str(experiments), str(timesteps)],
+        env=env,
+        capture_output=True,
+        text=True,
+    )
     line = next((ln for ln in proc.stdout.splitlines() if ln.startswith("STAGE ")), None)
     if proc.returncode != 0 or line is None:
         raise RuntimeError((proc.stdout + proc.stderr)[-4000:])
@@ -93,7 +98,10 @@ def main() -> None:
         cluster.shutdown()
     rows.append({"setting": "2-node", "ray_start_s": ray_start, **two, **_spread(work / "two-node")})
     print(pd.DataFrame(rows).to_string(index=False, float_format="{:.1f}".format))
-    path = write_result("stage_concurrency", {"experiments": args.experiments, "timesteps": args.timesteps, "node_cpus": args.node_cpus, "rows": rows})
+    path = write_result(
+        "stage_concurrency",
+        {"experiments": args.experiments, "timesteps": args.timesteps, "node_cpus": args.node_cpus, "rows": rows},
+    )
     print(f"wrote {path}")
 
 

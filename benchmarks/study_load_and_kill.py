@@ -127,7 +127,9 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--participants", type=int, default=100, help="simulated participants (default 100; a multiple of 4)")
     p.add_argument("--think", type=float, default=0.5, help="mean seconds a participant thinks before a pick (default 0.5)")
-    p.add_argument("--kill-at", type=float, default=0.33, help="SIGKILL when this share of the study's tries is stored (default 0.33)")
+    p.add_argument(
+        "--kill-at", type=float, default=0.33, help="SIGKILL when this share of the study's tries is stored (default 0.33)"
+    )
     p.add_argument("--clients", type=int, default=2, help="client processes (default 2)")
     p.add_argument("--name", default="study_load_and_kill", help="result file name under benchmarks/results/")
     args = p.parse_args()
@@ -145,14 +147,23 @@ def main() -> None:
         print(f"{kind:<10}{s['n']:>7}{s['p50_ms']:>10}{s['p99_ms']:>10}{s['max_ms']:>10}")
     k, a, t = r["kill"], r["audit"], r["takeover"]
     rows = [
-        ("participants", f"{r['participants']} ({r['with_agent']} with the agent, {r['in_human_pairs']} in human pairs), thinking ~{r['think_s']:g} s"),
+        (
+            "participants",
+            f"{r['participants']} ({r['with_agent']} with the agent, {r['in_human_pairs']} in human pairs), thinking ~{r['think_s']:g} s",
+        ),
         ("study", f"{r['tries']} tries in {r['wall_s']} s ({r['tries_per_s']} tries/s), server CPU {r['server_cpu_s']} s"),
         ("SIGKILL", f"at {k['tries_at_kill']} of {k['of_total']} tries stored; back in {k['outage_s']} s"),
         ("acknowledged kept", f"{a['acknowledged_kept']} of {a['acknowledged_before_kill']} (lost {a['lost_before_kill']})"),
         ("in the end", f"lost {a['lost']}, duplicated {a['duplicated']}, finished {a['finished']}, unfinished {a['unfinished']}"),
-        ("resumed", f"{a['resumed_same_session']} participants in their own session ({a['resumes']} resumes), "
-         f"{a['new_sessions_on_resume']} new sessions, {a['refused_resumes_seen_by_participants']} refused"),
-        ("takeover by id", f"{t['refused_409']} of {t['attempts']} refused (409), {t['token_handed_out']} tokens handed out; admin page counts {t['admin_refused_resumes']}"),
+        (
+            "resumed",
+            f"{a['resumed_same_session']} participants in their own session ({a['resumes']} resumes), "
+            f"{a['new_sessions_on_resume']} new sessions, {a['refused_resumes_seen_by_participants']} refused",
+        ),
+        (
+            "takeover by id",
+            f"{t['refused_409']} of {t['attempts']} refused (409), {t['token_handed_out']} tokens handed out; admin page counts {t['admin_refused_resumes']}",
+        ),
     ]
     for name, text in rows:
         print(f"{name:<20}{text}")

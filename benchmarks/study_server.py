@@ -63,14 +63,31 @@ def latencies(outcomes: list[Outcome]) -> dict[str, dict[str, float]]:
     out = {}
     for kind in kinds:
         ms = np.array([x for o in outcomes for x in o.latencies.get(kind, [])]) * 1000
-        out[kind] = {"n": int(ms.size), "p50_ms": round(float(np.percentile(ms, 50)), 2), "p99_ms": round(float(np.percentile(ms, 99)), 2), "max_ms": round(float(ms.max()), 2)}
+        out[kind] = {
+            "n": int(ms.size),
+            "p50_ms": round(float(np.percentile(ms, 50)), 2),
+            "p99_ms": round(float(np.percentile(ms, 99)), 2),
+            "max_ms": round(float(ms.max()), 2),
+        }
     return out
 
 
 def server_args(out: Path, run: str | None, port: int = 0) -> list[str]:
     agent = [run] if run else ["--agent", "agent=oracle"]
     # Every simulated participant comes from loopback: one client address, so no enrolment limit.
-    return [*agent, "--conditions", "agent,human", "--port", str(port), "--out", str(out), "--admin-token", "benchmark-token", "--enrol-limit", "0"]
+    return [
+        *agent,
+        "--conditions",
+        "agent,human",
+        "--port",
+        str(port),
+        "--out",
+        str(out),
+        "--admin-token",
+        "benchmark-token",
+        "--enrol-limit",
+        "0",
+    ]
 
 
 def cpu_s(pid: int) -> float:
@@ -145,7 +162,9 @@ def faults(n: int, clients: int, run: str | None, root: Path) -> dict:
     return {
         "participants": n,
         "tries_at_kill": int(marks["tries_at_kill"]),
-        "acknowledged_before_kill": sum(len(o.seen_before_outage or {}) for o in outcomes),  # per participant: a pair's try counts twice
+        "acknowledged_before_kill": sum(
+            len(o.seen_before_outage or {}) for o in outcomes
+        ),  # per participant: a pair's try counts twice
         "outage_s": round(marks["back"] - marks["killed"], 2),
         "resumed_same_session": sum(len(o.tokens) == 1 for o in outcomes),
         "audit_before_kill": vars(before),
@@ -179,14 +198,28 @@ def main() -> None:
             print(f"{pace:<28}{kind:<10}{s['n']:>7}{s['p50_ms']:>10}{s['p99_ms']:>10}{s['max_ms']:>10}")
     for loaded in runs:
         a = loaded["audit"]
-        print(f"load ({loaded['think_s']:g} s think): {loaded['participants']} participants ({loaded['with_agent']} with the agent, {loaded['in_human_pairs']} in human pairs), "
-              f"{a['tries']} tries in {loaded['wall_s']} s ({loaded['tries_per_s']} tries/s, server CPU {loaded['server_cpu_s']} s); lost {a['lost']}, duplicated {a['duplicated']}, unfinished {a['unfinished']}")
+        print(
+            f"load ({loaded['think_s']:g} s think): {loaded['participants']} participants ({loaded['with_agent']} with the agent, {loaded['in_human_pairs']} in human pairs), "
+            f"{a['tries']} tries in {loaded['wall_s']} s ({loaded['tries_per_s']} tries/s, server CPU {loaded['server_cpu_s']} s); lost {a['lost']}, duplicated {a['duplicated']}, unfinished {a['unfinished']}"
+        )
     b, c = faulted["audit_before_kill"], faulted["audit_after"]
-    print(f"faults: {faulted['participants']} participants, SIGKILL at {faulted['tries_at_kill']} stored tries "
-          f"({faulted['acknowledged_before_kill']} acknowledged), back in {faulted['outage_s']} s; "
-          f"lost before the kill {b['lost']}, lost after {c['lost']}, duplicated {c['duplicated']}, unfinished {c['unfinished']}, "
-          f"resumed in their session {faulted['resumed_same_session']}/{faulted['participants']}")
-    path = write_result(args.name, {"load": runs[0], "load_paced": runs[1], "faults": faulted, "clients": args.clients, "agent": args.run or "oracle", "loadavg_at_start": loadavg})
+    print(
+        f"faults: {faulted['participants']} participants, SIGKILL at {faulted['tries_at_kill']} stored tries "
+        f"({faulted['acknowledged_before_kill']} acknowledged), back in {faulted['outage_s']} s; "
+        f"lost before the kill {b['lost']}, lost after {c['lost']}, duplicated {c['duplicated']}, unfinished {c['unfinished']}, "
+        f"resumed in their session {faulted['resumed_same_session']}/{faulted['participants']}"
+    )
+    path = write_result(
+        args.name,
+        {
+            "load": runs[0],
+            "load_paced": runs[1],
+            "faults": faulted,
+            "clients": args.clients,
+            "agent": args.run or "oracle",
+            "loadavg_at_start": loadavg,
+        },
+    )
     print(f"wrote {path}")
 
 

@@ -87,7 +87,11 @@ def main() -> None:
 
     # Embedded: the sweep's own process starts Ray; time it apart with a bare start/stop.
     start = time.perf_counter()
-    subprocess.run([sys.executable, "-c", "import ray; ray.init(num_cpus=2, include_dashboard=False); ray.shutdown()"], check=True, capture_output=True)
+    subprocess.run(
+        [sys.executable, "-c", "import ray; ray.init(num_cpus=2, include_dashboard=False); ray.shutdown()"],
+        check=True,
+        capture_output=True,
+    )
     ray_start = time.perf_counter() - start
     rows.append(_row("embedded", ray_start, _run_sweep(config, work / "embedded", None), work / "embedded"))
 
@@ -109,7 +113,9 @@ def main() -> None:
     with pd.option_context("display.float_format", "{:.1f}".format, "display.width", 200):
         print(table.to_string(index=False))
     print("2-node / embedded: " + ", ".join(f"{k} {v:.2f}x" for k, v in ratio.items()))
-    path = write_result("sweep_overhead", {"timesteps_per_trial": args.timesteps, "trials": 4, "rows": rows, "ratio_2node_over_embedded": ratio})
+    path = write_result(
+        "sweep_overhead", {"timesteps_per_trial": args.timesteps, "trials": 4, "rows": rows, "ratio_2node_over_embedded": ratio}
+    )
     print(f"wrote {path}")
 
 

@@ -41,7 +41,17 @@ def measure(game: str, method: str, seconds: float) -> float:
 def run_child(code: Path, game: str, method: str, seconds: float) -> float:
     """`measure` in a fresh process whose rllib_conv is `code`'s (and whose benchmark scripts are this checkout's)."""
     env = {**os.environ, "PYTHONPATH": str(code), "OMP_NUM_THREADS": "1", "RAY_ADDRESS": ""}
-    command = [sys.executable, "-m", "benchmarks.throughput_against", "--child", game, "--methods", method, "--seconds", str(seconds)]
+    command = [
+        sys.executable,
+        "-m",
+        "benchmarks.throughput_against",
+        "--child",
+        game,
+        "--methods",
+        method,
+        "--seconds",
+        str(seconds),
+    ]
     proc = subprocess.run(command, cwd=benchmarks_only_folder(), env=env, capture_output=True, text=True)
     line = next((ln for ln in proc.stdout.splitlines() if ln.startswith("STEPS ")), None)
     if proc.returncode != 0 or line is None:
@@ -53,7 +63,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--old-commit", help="the commit to compare against (required unless --child)")
     parser.add_argument("--games", nargs="+", default=["blocks", "hanabi"], choices=GAMES)
-    parser.add_argument("--methods", nargs="+", default=["modular"], choices=METHODS, help="the egos trained (each on every game)")
+    parser.add_argument(
+        "--methods", nargs="+", default=["modular"], choices=METHODS, help="the egos trained (each on every game)"
+    )
     parser.add_argument("--seconds", type=float, default=20.0, help="minimum timed training per measurement")
     parser.add_argument("--rounds", type=int, default=3, help="measurements of each code per game")
     parser.add_argument("--name", default="throughput_against")
@@ -74,7 +86,9 @@ def main() -> None:
         before, now = statistics.median(runs["before"]), statistics.median(runs["now"])
         rows.append({"env": game, "method": method, "before": before, "now": now, "now/before": now / before, "runs": runs})
         print(pd.DataFrame(rows).drop(columns="runs").to_string(index=False, float_format="{:.2f}".format), flush=True)
-    subprocess.run(["git", "-C", str(REPO), "worktree", "remove", "--force", str(codes["before"])], check=False, capture_output=True)
+    subprocess.run(
+        ["git", "-C", str(REPO), "worktree", "remove", "--force", str(codes["before"])], check=False, capture_output=True
+    )
     path = write_result(args.name, {"old_commit": args.old_commit, "seconds": args.seconds, "rounds": args.rounds, "rows": rows})
     print(f"wrote {path}")
 

@@ -71,7 +71,9 @@ def _blocks_four(tmp: Path) -> str:
 def ours(population: str, seeds: int, batched: bool = True, method: str = "modular") -> PPOConfig:
     """The ego's config (paper hyperparameters; `method`, the modular ego with lam 0.5 by default) for `population`, `seeds` seeds packed as replicas."""
     lam = {"lam": 0.5} if method == "modular" else {}
-    config = build_ppo_config([Replica(resolve(ExperimentConfig(population=population, method=method, seed=s, **lam))) for s in range(seeds)])
+    config = build_ppo_config(
+        [Replica(resolve(ExperimentConfig(population=population, method=method, seed=s, **lam))) for s in range(seeds)]
+    )
     return config if batched else config.env_runners(env_runner_cls=LeanEnvRunner)
 
 
@@ -139,6 +141,8 @@ def fixed_update(algo: Any, episodes: Any) -> Callable[[], Any]:
 def population_of(game: str, folder: Path) -> str:
     """The partner population `ours` trains `game`'s ego against (blocks: a 4-partner manifest written to `folder`)."""
     return {"bandit": "bandit-s2-hand", "hanabi": "hanabi-scripted"}.get(game) or _blocks_four(folder)
+
+
 MOVES_PER_STEP = {"bandit": 2, "blocks": 1, "hanabi": 1}  # agent moves in one env step
 
 
@@ -172,7 +176,13 @@ def main() -> None:
                     "ours_3/default": three / default,
                     "ours_3/ours_3_episodes": three / episodes,
                     "ours_3/ceiling": three / ceiling,
-                    "iterations": {"ours_1": n_one, "ours_3": n_three, "ours_3_episodes": n_episodes, "ours_10": n_ten, "rllib_default": n_default},
+                    "iterations": {
+                        "ours_1": n_one,
+                        "ours_3": n_three,
+                        "ours_3_episodes": n_episodes,
+                        "ours_10": n_ten,
+                        "rllib_default": n_default,
+                    },
                 }
             )
             print(pd.DataFrame(rows).drop(columns="iterations").to_string(index=False, float_format="{:.2f}".format), flush=True)

@@ -28,7 +28,9 @@ def build_report(root: str | Path, out: str | Path | None = None, user_study: It
     """
     root, out = Path(root), Path(out) if out is not None else Path(root) / "report"
     if not root.is_dir():
-        raise ValueError(f"root {str(root)!r} is not a folder (expected a `rllib-conv reproduce --out` folder or one game folder)")
+        raise ValueError(
+            f"root {str(root)!r} is not a folder (expected a `rllib-conv reproduce --out` folder or one game folder)"
+        )
     out.mkdir(parents=True, exist_ok=True)
     ctx = Context(root, out, user_study)
     # Sections that compare numbers run first, so the summary at the top can list their differences.
@@ -53,7 +55,7 @@ def build_report(root: str | Path, out: str | Path | None = None, user_study: It
         "interval), the interval of the grand mean of a balanced nested (seed, partner) design. A hierarchical bootstrap is "
         "not used: with the 3 to 5 seeds of blocks and Hanabi it resamples among only 10 to 126 distinct seed sets and its "
         "intervals come out too narrow; one rule serves every game. "
-        "A paper number counts as matching when it lies inside our interval, widened by its rounding. A claim \"A beats B\" "
+        'A paper number counts as matching when it lies inside our interval, widened by its rounding. A claim "A beats B" '
         "is judged on the paired difference A − B over the (seed, test partner) units both methods share, averaged per seed, "
         "with its 95% t-interval over seeds: supported when the whole interval is above 0, contradicted when it is below 0, "
         "not shown otherwise; these are the only verdicts, and the tallies count them. The paper's claims are checked on its "

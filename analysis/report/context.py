@@ -83,7 +83,9 @@ class Context:
         # A single network (BaselineAgg, MAML) cannot follow conflicting conventions: a low training return is expected there.
         single = not row.empty and methods.method(row["method"].iloc[0]).single_head
         if not single and not row.empty and np.isfinite(top) and row["mean"].iloc[0] < CONVERGED * top:
-            out.append(f"the trained ego is under-trained: {row['mean'].iloc[0]:.{digits(game)}f} of a possible {top:g} with its training partners")
+            out.append(
+                f"the trained ego is under-trained: {row['mean'].iloc[0]:.{digits(game)}f} of a possible {top:g} with its training partners"
+            )
         if n == 1:
             out.append("a single seed: no interval to judge the difference by")
         return out

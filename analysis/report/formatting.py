@@ -27,6 +27,7 @@ def fmt_summary(row: Mapping[str, Any], digits: int = 3) -> str:
 
 def md_table(headers: Sequence[str], rows: Iterable[Sequence[object]]) -> str:
     """A GitHub-markdown table (cells converted with str, pipes escaped)."""
+
     def cell(x: object) -> str:
         return str(x).replace("|", "\\|").replace("\n", " ")
 

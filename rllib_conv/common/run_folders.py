@@ -124,9 +124,13 @@ def trial_folders(path: str | Path, missing_ok: bool = False) -> list[Path]:
     path = Path(path)
     if (path / CONFIG_FILE).is_file():
         return [path]
-    trials = sorted(p.parent for pattern in (f"*/{CONFIG_FILE}", f"*/{REPLICA_PREFIX}*/{CONFIG_FILE}") for p in path.glob(pattern))
+    trials = sorted(
+        p.parent for pattern in (f"*/{CONFIG_FILE}", f"*/{REPLICA_PREFIX}*/{CONFIG_FILE}") for p in path.glob(pattern)
+    )
     if not trials and not missing_ok:
-        raise ValueError(f"{str(path)!r} is neither a trained-ego trial folder nor an experiment folder holding some ({CONFIG_FILE} missing)")
+        raise ValueError(
+            f"{str(path)!r} is neither a trained-ego trial folder nor an experiment folder holding some ({CONFIG_FILE} missing)"
+        )
     return trials
 
 

@@ -133,7 +133,9 @@ def first_try_scores(df: pd.DataFrame, exclude_pairs: Iterable[int] = (), ddof: 
         raise ValueError("first_try_scores needs the `coordinated` column; pass a frame from load_user_study")
     first = df[(df["try"] == 1) & ~df["pair"].isin(set(exclude_pairs))]
     grouped = first.groupby(["task", "context"])["coordinated"]
-    out = pd.DataFrame({"score": grouped.mean(), "sem": grouped.sem(ddof=ddof), "n": grouped.size(), "coordinated": grouped.sum()})
+    out = pd.DataFrame(
+        {"score": grouped.mean(), "sem": grouped.sem(ddof=ddof), "n": grouped.size(), "coordinated": grouped.sum()}
+    )
     # groupby sorts alphabetically ("test" before "train"); the paper reads train first.
     order = [(t, c) for t in TASKS for c in CONTEXTS if (t, c) in out.index]
     out = out.loc[order].reset_index()

@@ -25,6 +25,17 @@ for _record in (BANDIT, BLOCKS, HANABI):
     register_game(_record, builtin=True)
 
 __all__ = [
-    "GameRecord", "game", "games", "make", "names", "register", "register_game", "convention_key", "best_response",
-    "CollaborativeBanditEnv", "BlockPlacingEnv", "BlocksBestResponse", "HanabiEnv",
+    "GameRecord",
+    "game",
+    "games",
+    "make",
+    "names",
+    "register",
+    "register_game",
+    "convention_key",
+    "best_response",
+    "CollaborativeBanditEnv",
+    "BlockPlacingEnv",
+    "BlocksBestResponse",
+    "HanabiEnv",
 ]

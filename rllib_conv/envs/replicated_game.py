@@ -74,7 +74,9 @@ class ReplicatedGame(MultiAgentEnv):
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
         obs = {}
         for r, env in enumerate(self.copies):
-            o, _ = env.reset(seed=None if seed is None else game_seed(self.replica_seeds[r], seed - self.base_seed), options=options)
+            o, _ = env.reset(
+                seed=None if seed is None else game_seed(self.replica_seeds[r], seed - self.base_seed), options=options
+            )
             ids = self._ids[r]
             obs.update({ids[a]: v for a, v in o.items()})
         self._done = [False] * len(self.copies)
@@ -134,7 +136,12 @@ class ReplicatedGame(MultiAgentEnv):
 
 def replicated_env_config(name: str, game_config: dict, replica_seeds: list[int], base_seed: int) -> dict:
     """The RLlib `env_config` of `ReplicatedGame`: games every process finds by name, others with their factory."""
-    env_config = {"game": name, "game_config": dict(game_config), "replica_seeds": list(replica_seeds), "base_seed": int(base_seed)}
+    env_config = {
+        "game": name,
+        "game_config": dict(game_config),
+        "replica_seeds": list(replica_seeds),
+        "base_seed": int(base_seed),
+    }
     if not registry.found_by_name(name):
         env_config["factory"] = registry.factory(name)
     return env_config

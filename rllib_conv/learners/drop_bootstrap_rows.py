@@ -25,5 +25,7 @@ class DropBootstrapRows(ConnectorV2):
             mask = module_batch.pop(Columns.LOSS_MASK, None)
             if mask is None:
                 continue
-            batch[module_id] = tree.map_structure(lambda x, m=mask: x[m] if hasattr(x, "shape") and len(x) == len(m) else x, module_batch)
+            batch[module_id] = tree.map_structure(
+                lambda x, m=mask: x[m] if hasattr(x, "shape") and len(x) == len(m) else x, module_batch
+            )
         return batch

@@ -50,7 +50,9 @@ class ModulePermuters:
 class CyclicMinibatchPlan:
     """Row indices per module for every minibatch update of one learner update (see the module docstring)."""
 
-    def __init__(self, sizes: dict[str, int], minibatch_size: int, num_epochs: int, shuffle: bool, permute: Permute = global_permute) -> None:
+    def __init__(
+        self, sizes: dict[str, int], minibatch_size: int, num_epochs: int, shuffle: bool, permute: Permute = global_permute
+    ) -> None:
         empty = [mid for mid, n in sizes.items() if n == 0]
         if empty:
             raise ValueError(f"the batch of module(s) {empty} is empty; every module being trained needs rows")

@@ -54,7 +54,12 @@ class PartnerMapping:
 
     def get_state(self) -> dict[str, Any]:
         """The episode count, current assignments and the schedule's generators (saved with checkpoints)."""
-        return {"next": self._next, "assigned": [[k, list(v)] for k, v in self._assigned.items()], "focus": self._focus, "schedule": self.schedule.get_state()}
+        return {
+            "next": self._next,
+            "assigned": [[k, list(v)] for k, v in self._assigned.items()],
+            "focus": self._focus,
+            "schedule": self.schedule.get_state(),
+        }
 
     def set_state(self, state: dict[str, Any]) -> None:
         """Restore a state from `get_state`."""
@@ -72,7 +77,9 @@ class PartnerMapping:
             if self._focus is not None:
                 self._assigned[episode_id] = (self._focus,) * replicas
             else:
-                self._assigned[episode_id] = tuple(self.schedule.index(r, self._next, self._own(r if self.replica_partners else None)) for r in range(replicas))
+                self._assigned[episode_id] = tuple(
+                    self.schedule.index(r, self._next, self._own(r if self.replica_partners else None)) for r in range(replicas)
+                )
                 self._next += 1
             if len(self._assigned) > _CACHE:
                 self._assigned.popitem(last=False)

@@ -8,7 +8,9 @@ import torch
 from torch import nn
 
 
-def mlp(sizes: list[int], out_gain: float | None = None, final_relu: bool = False, generator: torch.Generator | None = None) -> nn.Sequential:
+def mlp(
+    sizes: list[int], out_gain: float | None = None, final_relu: bool = False, generator: torch.Generator | None = None
+) -> nn.Sequential:
     """Return Linear/ReLU layers through `sizes` (input first), orthogonally initialised.
 
     Hidden layers use gain sqrt(2); the last layer uses `out_gain` (SB3: 0.01 for policy

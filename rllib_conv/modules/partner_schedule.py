@@ -95,7 +95,9 @@ class PartnerFunction(_Seeded):
             self._fn = load_function(self.path)
         name = self._fn(episode, list(partners), self.rng(replica))
         if name not in partners:
-            raise ValueError(f"mapping function {self.path!r} returned {name!r} for episode {episode}; expected one of {partners}")
+            raise ValueError(
+                f"mapping function {self.path!r} returned {name!r} for episode {episode}; expected one of {partners}"
+            )
         return partners.index(name)
 
     def __getstate__(self) -> dict[str, Any]:

@@ -34,7 +34,9 @@ class BanditConventionPartner(Partner):
     def act_batch(self, observations: np.ndarray, action_masks: np.ndarray) -> np.ndarray:
         contexts = np.asarray(observations).argmax(axis=1)
         if contexts.size and contexts.max() >= len(self.arms):
-            raise ValueError(f"{self.name}: an observation names context {contexts.max()}, but this partner knows {len(self.arms)} contexts")
+            raise ValueError(
+                f"{self.name}: an observation names context {contexts.max()}, but this partner knows {len(self.arms)} contexts"
+            )
         actions = self._arms[contexts]
         # A fixed partner has no fallback: playing a masked or missing arm would hide a mismatched env.
         masks = np.asarray(action_masks)
@@ -75,8 +77,7 @@ def convention_arms(code: tuple[int, ...], new_task: bool = False) -> list[int]:
     """
     symmetric = len(code)
     return [
-        c + PAPER_CONTEXTS * code[c] if c < symmetric else c + (PAPER_CONTEXTS if new_task else 0)
-        for c in range(PAPER_CONTEXTS)
+        c + PAPER_CONTEXTS * code[c] if c < symmetric else c + (PAPER_CONTEXTS if new_task else 0) for c in range(PAPER_CONTEXTS)
     ]
 
 
@@ -94,9 +95,7 @@ def random_convention_partners(prizes: np.ndarray, n: int, seed: int, prefix: st
         raise ValueError(f"n must be >= 1, got {n}")
     rng = np.random.default_rng(seed)
     good = good_arms(np.asarray(prizes))
-    return [
-        BanditConventionPartner(f"{prefix}-{i}", [int(rng.choice(arms)) for arms in good]) for i in range(n)
-    ]
+    return [BanditConventionPartner(f"{prefix}-{i}", [int(rng.choice(arms)) for arms in good]) for i in range(n)]
 
 
 assert PAPER_ARMS == 2 * PAPER_CONTEXTS  # convention_arms relies on the high arm being c + 4

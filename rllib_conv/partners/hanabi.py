@@ -99,9 +99,7 @@ class HanabiRulePartner(Partner):
         """Return the rule's move id for one card-knowledge observation; ValueError if nothing is legal."""
         mask = np.asarray(action_mask)
         if len(mask) != self._ids.num_moves:
-            raise ValueError(
-                f"{self.name}: action mask has {len(mask)} entries, expected {self._ids.num_moves} for {self._cfg}"
-            )
+            raise ValueError(f"{self.name}: action mask has {len(mask)} entries, expected {self._ids.num_moves} for {self._cfg}")
         legal = _legal_ids(mask, self.name)
         view = decode_card_knowledge(observation, **self._cfg)
         if view["knowledge"] is None:
@@ -139,9 +137,7 @@ class HanabiRulePartner(Partner):
         # 3. Discard the least useful card.
         discardable = [i for i in range(len(view["own_possible"])) if mask[self._ids.discard(i)]]
         if discardable:
-            return self._ids.discard(
-                min(discardable, key=lambda i: (self._usefulness(view["own_possible"][i], view, unseen), i))
-            )
+            return self._ids.discard(min(discardable, key=lambda i: (self._usefulness(view["own_possible"][i], view, unseen), i)))
 
         # 4. Any hint, preferably an informative one about a low card.
         hint = self._informative_hint(view, mask)
@@ -155,10 +151,7 @@ class HanabiRulePartner(Partner):
         """Return [colour][rank] copies not visible to the observer (in the deck or its own hand)."""
         colors, ranks = self._cfg["colors"], self._cfg["ranks"]
         counts = [
-            [
-                card_count(r, ranks) - view["discard_counts"][c][r] - (1 if r < view["fireworks"][c] else 0)
-                for r in range(ranks)
-            ]
+            [card_count(r, ranks) - view["discard_counts"][c][r] - (1 if r < view["fireworks"][c] else 0) for r in range(ranks)]
             for c in range(colors)
         ]
         for hand in view["hands"][1:]:

@@ -44,7 +44,9 @@ def kind_class(kind: str) -> type[Partner]:
     try:
         return _KINDS[kind]
     except KeyError:
-        raise ValueError(f"unknown partner kind {kind!r}; known kinds: {', '.join(kinds())} (or give 'package.module:Class')") from None
+        raise ValueError(
+            f"unknown partner kind {kind!r}; known kinds: {', '.join(kinds())} (or give 'package.module:Class')"
+        ) from None
 
 
 def gives_action_probs(kind: str) -> bool:

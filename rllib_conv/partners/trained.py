@@ -29,7 +29,9 @@ class PolicyPartner(Partner):
 
     kind = "policy"
 
-    def __init__(self, name: str, logits_fn: LogitsFn | None = None, greedy: bool = False, seed: int = 0, memo: bool = False) -> None:
+    def __init__(
+        self, name: str, logits_fn: LogitsFn | None = None, greedy: bool = False, seed: int = 0, memo: bool = False
+    ) -> None:
         super().__init__(name)
         self.logits_fn = logits_fn
         self.greedy = bool(greedy)
@@ -121,7 +123,9 @@ class TrainedPolicyPartner(PolicyPartner):
             # The checkpoint names its module class (ours: `TaskModule`); RLlib rebuilds that class.
             self.module = load_rl_module(path)
         except Exception as exc:  # a damaged pickle raises anything from EOFError to UnpicklingError
-            raise ValueError(f"partner {name!r}: checkpoint {str(path)!r} cannot be loaded ({type(exc).__name__}: {exc})") from None
+            raise ValueError(
+                f"partner {name!r}: checkpoint {str(path)!r} cannot be loaded ({type(exc).__name__}: {exc})"
+            ) from None
         self.module.eval()
         super().__init__(name, module_logits(self.module), greedy, seed)
 

@@ -182,7 +182,9 @@ class AdaptTrainable(AlgorithmTrainable):
     def _update_guards(self) -> None:
         """Give each curve's guard its adapting ego's returns in the episodes of the last sample."""
         returns: dict[str, list[float]] = {}
-        for taken in self.algo.env_runner_group.foreach_env_runner(lambda runner: runner.take_module_returns(), local_env_runner=True):
+        for taken in self.algo.env_runner_group.foreach_env_runner(
+            lambda runner: runner.take_module_returns(), local_env_runner=True
+        ):
             for mid, values in taken.items():
                 returns.setdefault(mid, []).extend(values)
         for guard, mid in zip(self.guards, self.ego_modules):
@@ -199,22 +201,29 @@ class AdaptTrainable(AlgorithmTrainable):
         by_run: dict[str, KnownConventions] = {}
         for curve in self.curves:
             if curve.run not in by_run:
-                by_run[curve.run] = known_conventions(partners.get(curve.trained.population), self._trained_ego(curve.run), "head_init 'posterior'")
+                by_run[curve.run] = known_conventions(
+                    partners.get(curve.trained.population), self._trained_ego(curve.run), "head_init 'posterior'"
+                )
         self.known = [by_run[c.run] for c in self.curves]
         self.handed: list[int | None] = [None] * len(self.curves)
         s = self.cfg.posterior
         self.posteriors = [
-            ConventionPosterior(known.models, envs.convention_key(c.setup.population.env), s.recombined, s.novel, s.epsilon) for known, c in zip(self.known, self.curves)
+            ConventionPosterior(known.models, envs.convention_key(c.setup.population.env), s.recombined, s.novel, s.epsilon)
+            for known, c in zip(self.known, self.curves)
         ]
         self.planners = [envs.best_response(c.setup.population.env, c.setup.env_config, c.setup.ego_agent) for c in self.curves]
         self.partner_modules = [replica_id(partner_id(c.setup.train[0].name), r) for r, c in enumerate(self.curves)]
         mids = self.partner_modules
-        self.algo.env_runner_group.foreach_env_runner(lambda runner: [runner.module[m].record_moves() for m in mids], local_env_runner=True)
+        self.algo.env_runner_group.foreach_env_runner(
+            lambda runner: [runner.module[m].record_moves() for m in mids], local_env_runner=True
+        )
 
     def _update_posteriors(self) -> None:
         """Add the new partners' moves of the last update to their posteriors; hand a near-certain known convention's head over."""
         mids = self.partner_modules
-        for moves in self.algo.env_runner_group.foreach_env_runner(lambda runner: {m: runner.module[m].take_moves() for m in mids}, local_env_runner=True):
+        for moves in self.algo.env_runner_group.foreach_env_runner(
+            lambda runner: {m: runner.module[m].take_moves() for m in mids}, local_env_runner=True
+        ):
             for r, mid in enumerate(mids):
                 if moves[mid] is not None:
                     self.posteriors[r].observe(*moves[mid])
@@ -250,7 +259,9 @@ class AdaptTrainable(AlgorithmTrainable):
         adapting = ego_head_partner(plain, head_id)  # `player_return` seeds every player it plays
         if self.cfg.head_init != POSTERIOR:
             return adapting
-        return PosteriorPlayer(head_id, self.posteriors[r], self.known[r].heads, adapting, self.handed[r], planner=self.planners[r])
+        return PosteriorPlayer(
+            head_id, self.posteriors[r], self.known[r].heads, adapting, self.handed[r], planner=self.planners[r]
+        )
 
     def _pick_heads(self) -> list[HeadPick]:
         """Per curve: try the fresh head and every trained head on the new partner; copy the winner into the new head."""
@@ -264,7 +275,15 @@ class AdaptTrainable(AlgorithmTrainable):
             players |= {mid: ego_head_partner(trained, mid, seed) for mid in trained.head_ids()}
             game, env_config = curve.setup.population.env, curve.setup.env_config
             budget = self.cfg.pick_steps or curve.setup.exp.ppo.rollout_per_partner
-            pick = pick_head(lambda: envs.make(game, **env_config), players, entry.build, curve.setup.ego_agent, curve.setup.partner_agent, budget, seed)
+            pick = pick_head(
+                lambda: envs.make(game, **env_config),
+                players,
+                entry.build,
+                curve.setup.ego_agent,
+                curve.setup.partner_agent,
+                budget,
+                seed,
+            )
             if pick.chosen != FRESH:
                 chosen[r] = trained[pick.chosen].state_dict()
             self.offset[r] = max(pick.steps, budget)
@@ -281,10 +300,22 @@ class AdaptTrainable(AlgorithmTrainable):
             entry = curve.setup.train[0]
             plain = copy_replica(module, r, rep, self.plain[r])
             score = player_return(
-                self._player(r, plain, curve.setup.head_for(entry.name)), curve.setup.population.env, curve.setup.env_config, entry.build(),
-                curve.setup.ego_agent, curve.setup.partner_agent, self.cfg.episodes, seed=self.cfg.seed + self.iteration,
+                self._player(r, plain, curve.setup.head_for(entry.name)),
+                curve.setup.population.env,
+                curve.setup.env_config,
+                entry.build(),
+                curve.setup.ego_agent,
+                curve.setup.partner_agent,
+                self.cfg.episodes,
+                seed=self.cfg.seed + self.iteration,
             )
-            row = {**curve.label, "steps": self.steps[r], "mean_return": score["mean"], "stderr": score["stderr"], "exact_return": score.get("exact", math.nan)}
+            row = {
+                **curve.label,
+                "steps": self.steps[r],
+                "mean_return": score["mean"],
+                "stderr": score["stderr"],
+                "exact_return": score.get("exact", math.nan),
+            }
             if self.cfg.guard:
                 row["prior_kept"] = not self.guards[r].trusted
             self.rows.append({**row, **({"picked": self.picked[r]} if self.picked[r] else {})})
@@ -368,12 +399,25 @@ def run_adaptations(
     for cfg, pairs in zip(cfgs, curves):
         for pair in pairs:
             adapt_curve(cfg, pair["run"], pair["partner"])  # wrong game, missing weights: fail early
-    stage = Stage(ADAPT, AdaptTrainable, tune.CheckpointConfig(checkpoint_at_end=False), units="curves", table=CURVES_TABLE, manifest_key="population")
-    return run_packed(stage, raws, cfgs, curves, lambda i, pair: curve_packing_key(cfgs[i], pair), out, storage, address, label, loggers)
+    stage = Stage(
+        ADAPT,
+        AdaptTrainable,
+        tune.CheckpointConfig(checkpoint_at_end=False),
+        units="curves",
+        table=CURVES_TABLE,
+        manifest_key="population",
+    )
+    return run_packed(
+        stage, raws, cfgs, curves, lambda i, pair: curve_packing_key(cfgs[i], pair), out, storage, address, label, loggers
+    )
 
 
 def run_adaptation(
-    raw: dict[str, Any], out: str | Path = "adaptation", storage: str | Path = "runs", address: str | None = None, loggers: Sequence[str] = ()
+    raw: dict[str, Any],
+    out: str | Path = "adaptation",
+    storage: str | Path = "runs",
+    address: str | None = None,
+    loggers: Sequence[str] = (),
 ) -> pd.DataFrame:
     """Adapt every run in `raw` to every chosen partner; write and return the tidy curves CSV."""
     return next(iter(run_adaptations([raw], out, storage, address, loggers=loggers).values()))

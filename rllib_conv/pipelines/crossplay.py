@@ -50,7 +50,8 @@ def crossplay(a: Population, b: Population, episodes: int = 100, seed: int = 0) 
     for entry in a.partners:
         ego = counterpart_of(entry, a)
         rows[entry.name] = {
-            name: float(play_episodes(env, {ego_agent: ego, a.partner_agent: partner}, episodes, seed).mean()) for name, partner in partners_b
+            name: float(play_episodes(env, {ego_agent: ego, a.partner_agent: partner}, episodes, seed).mean())
+            for name, partner in partners_b
         }
     matrix = pd.DataFrame.from_dict(rows, orient="index")
     matrix.index.name = f"{a.name} ({ego_agent})"

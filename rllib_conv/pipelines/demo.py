@@ -53,7 +53,9 @@ def demo(storage: str | Path = "runs", address: str | None = None, overrides: li
     print(pd.DataFrame(rows).to_string(index=False, float_format="{:.3f}".format))
     env = CollaborativeBanditEnv(**pop.env_config)
     obs, mask = bandit_states(pop.env_config)
-    ego = trial_folders(result.path)[0]  # the trained ego the trial exported (its one seed); the trial's own checkpoint is the packed algorithm's
+    ego = trial_folders(result.path)[
+        0
+    ]  # the trained ego the trial exported (its one seed); the trial's own checkpoint is the packed algorithm's
     probs = task_probs(load_module(last_checkpoint(ego)), obs, mask)
     truth = oracle_marginals(env.prizes)
     table = pd.DataFrame(

@@ -87,7 +87,9 @@ def seat(text: str, seed: int = 0) -> Seat:
         ) from None
     entry = next((e for e in pop.partners if e.name == what), None)
     if entry is None:
-        raise ValueError(f"seat {text!r}: population {pop.name!r} has no member {what!r}; it has {[e.name for e in pop.partners]}")
+        raise ValueError(
+            f"seat {text!r}: population {pop.name!r} has no member {what!r}; it has {[e.name for e in pop.partners]}"
+        )
     return Seat(text, entry.build(), (pop.env, pop.env_config))
 
 
@@ -151,7 +153,13 @@ def pair(cfg: PairConfig) -> pd.DataFrame:
     exact = bandit_exact(env, players) if isinstance(env, CollaborativeBanditEnv) else math.nan
     stderr = float(scores.std(ddof=1) / np.sqrt(len(scores))) if len(scores) > 1 else 0.0
     row = {"env": game, "env_config": str(env_config), **{f"seat_{i}": s.text for i, s in enumerate(seats)}}
-    row |= {"episodes": cfg.episodes, "seed": cfg.seed, "mean_return": float(scores.mean()), "stderr": stderr, "exact_return": exact}
+    row |= {
+        "episodes": cfg.episodes,
+        "seed": cfg.seed,
+        "mean_return": float(scores.mean()),
+        "stderr": stderr,
+        "exact_return": exact,
+    }
     return pd.DataFrame([row])
 
 

@@ -142,7 +142,9 @@ def read_plan_file(path: str | Path) -> PlanFile:
         raise ValueError(f"plan file {str(path)!r}: {config_files.describe(exc)}") from None
 
 
-def plan_for(game: str, seeds: int = 3, quick: bool = False, train_steps: int | None = None, path: str | Path | None = None) -> Plan:
+def plan_for(
+    game: str, seeds: int = 3, quick: bool = False, train_steps: int | None = None, path: str | Path | None = None
+) -> Plan:
     """The plan of `game` from `path` (default: the shipped plan), at the paper's scale or, with `quick`, the small one.
 
     Egos train for the game's budget (its record's `training_defaults()`) unless
@@ -150,7 +152,9 @@ def plan_for(game: str, seeds: int = 3, quick: bool = False, train_steps: int | 
     """
     record = envs.game(game)  # ValueError naming the registered games
     if path is None and game not in GAMES:
-        raise ValueError(f"game {game!r} has no shipped plan (games with one: {', '.join(GAMES)}, or all); give a plan file with --plan")
+        raise ValueError(
+            f"game {game!r} has no shipped plan (games with one: {', '.join(GAMES)}, or all); give a plan file with --plan"
+        )
     if seeds < 1:
         raise ValueError(f"--seeds: expected at least 1 seed per method, got {seeds}")
     if train_steps is not None and train_steps < 1:
@@ -163,7 +167,9 @@ def plan_for(game: str, seeds: int = 3, quick: bool = False, train_steps: int | 
     adapt_variants = {label: AdaptVariant(label, variants[v.base], v.settings) for label, v in spec.adapt_variants.items()}
     scale = spec.quick if quick else spec.full
     if scale.zeroshot_populations and not record.new_task:
-        raise ValueError(f"plan file {str(source)!r}: zero-shot populations for {game!r}, a game without a new task (its record's new_task)")
+        raise ValueError(
+            f"plan file {str(source)!r}: zero-shot populations for {game!r}, a game without a new task (its record's new_task)"
+        )
     return Plan(
         game=game,
         seeds=[0] if quick else list(range(seeds)),

@@ -133,7 +133,9 @@ class Reproduction:
             base = config_files.load(config_file(f"selfplay_{self.plan.game}.yaml"), schema=SelfPlayConfig)
             raw = config_files.from_dict(_merge(base, overrides), schema=SelfPlayConfig)
             label = f"[{self.plan.game}] self-play {overrides['name']}"
-            _, report = train_population(raw, out=self.root / POPULATIONS_DIR, storage=self.runs, address=self.address, label=label, loggers=self.loggers)
+            _, report = train_population(
+                raw, out=self.root / POPULATIONS_DIR, storage=self.runs, address=self.address, label=label, loggers=self.loggers
+            )
             self.log(f"self-play {overrides['name']}: {int(report['passed'].sum())}/{len(report)} pairs passed the gate")
 
     def trained(self) -> list[tuple[str, TrainedVariant]]:
@@ -160,9 +162,17 @@ class Reproduction:
         for population, methods in self.populations().items():
             pop = partners.get(population)
             names = [e.name for e in pop.entries("test")][: self.plan.adapt_partners]
-            jobs = [(self.experiment(population, m)["name"], {"runs": self.egos(self.experiment(population, m)["name"])}) for m in methods]
+            jobs = [
+                (self.experiment(population, m)["name"], {"runs": self.egos(self.experiment(population, m)["name"])})
+                for m in methods
+            ]
             for v in self.variants(methods):
-                jobs.append((experiment_name(population, v.label), {**v.settings, "runs": self.egos(self.experiment(population, v.base)["name"])}))
+                jobs.append(
+                    (
+                        experiment_name(population, v.label),
+                        {**v.settings, "runs": self.egos(self.experiment(population, v.base)["name"])},
+                    )
+                )
             for name, extra in jobs:
                 if covers(self.root / ADAPTATION_DIR / f"{name}.csv", extra["runs"]):
                     continue
@@ -170,7 +180,9 @@ class Reproduction:
                 raws.append(config_files.from_dict(raw, schema=AdaptConfig))
         if raws:
             label = f"[{self.plan.game}] adapt"
-            run_adaptations(raws, out=self.root / ADAPTATION_DIR, storage=self.runs, address=self.address, label=label, loggers=self.loggers)
+            run_adaptations(
+                raws, out=self.root / ADAPTATION_DIR, storage=self.runs, address=self.address, label=label, loggers=self.loggers
+            )
 
     def egos(self, experiment: str) -> list[str]:
         """The trained egos of `experiment` with this plan's seeds (a folder may hold more, from a wider earlier plan)."""
@@ -184,10 +196,16 @@ class Reproduction:
                 name = self.experiment(population, method)["name"]
                 runs = self.egos(name)
                 if not covers(self.root / ZEROSHOT_DIR / f"{name}.csv", runs):
-                    raws.append(config_files.from_dict(_merge({"name": name, "runs": runs}, self.plan.zeroshot_overrides), schema=ZeroShotConfig))
+                    raws.append(
+                        config_files.from_dict(
+                            _merge({"name": name, "runs": runs}, self.plan.zeroshot_overrides), schema=ZeroShotConfig
+                        )
+                    )
         if raws:
             label = f"[{self.plan.game}] zeroshot"
-            run_zeroshots(raws, out=self.root / ZEROSHOT_DIR, storage=self.runs, address=self.address, label=label, loggers=self.loggers)
+            run_zeroshots(
+                raws, out=self.root / ZEROSHOT_DIR, storage=self.runs, address=self.address, label=label, loggers=self.loggers
+            )
 
     def has_marginals(self, experiment: str) -> bool:
         """Whether the marginals stage measures experiment `<population>__<label>` (see `Plan.no_marginals`)."""
@@ -218,7 +236,14 @@ class Reproduction:
         stages = self.stages()
         # The items let a report tell a stage this plan finished from one an earlier, smaller plan finished.
         items = {n: self.stage_items(n) for n, _ in stages}
-        plan = {"game": self.plan.game, "seeds": self.plan.seeds, "quick": self.plan.quick, "train_steps": self.plan.train_steps, "stages": list(items), "items": items}
+        plan = {
+            "game": self.plan.game,
+            "seeds": self.plan.seeds,
+            "quick": self.plan.quick,
+            "train_steps": self.plan.train_steps,
+            "stages": list(items),
+            "items": items,
+        }
         plan["report"] = envs.game(self.plan.game).report_facts()  # what the report needs of the game (analysis reads files only)
         if self.plan.no_worse_margin is not None:
             plan["no_worse_margin"] = self.plan.no_worse_margin  # the "no worse" claims' margin, declared in the plan
@@ -334,7 +359,9 @@ def reproduce(
     games = GAMES if game == "all" else (game,)
     if plan_file is not None and len(games) > 1:
         raise ValueError("--plan: a plan file is for one game; name the game instead of 'all'")
-    plans = [narrow(plan_for(g, seeds, quick, train_steps, plan_file), populations, methods) for g in games]  # validate every game before running any
+    plans = [
+        narrow(plan_for(g, seeds, quick, train_steps, plan_file), populations, methods) for g in games
+    ]  # validate every game before running any
     times = {}
     for plan in plans:
         repro = Reproduction(plan, Path(out) / plan.game, address, loggers=loggers)

@@ -87,19 +87,32 @@ def build_selfplay_config(cfg: SelfPlayConfig) -> PPOConfig:
     sizes = {"hidden": cfg.model.hidden, "z_dim": cfg.model.z_dim}
     specs = {
         seat_module_id(cfg, a): RLModuleSpec(
-            module_class=TaskModule, observation_space=env.observation_spaces[a], action_space=env.action_spaces[a], model_config=sizes
+            module_class=TaskModule,
+            observation_space=env.observation_spaces[a],
+            action_space=env.action_spaces[a],
+            model_config=sizes,
         )
         for a in game_agents(cfg)
     }
     shuffle_seeds = {mid: stream_seed(pair_seed(cfg.seed, cfg.pair), mid) for mid in specs}
     return (
-        base_ppo_config(RLlibGame, game_env_config(cfg.env, cfg.env_config), cfg.ppo, cfg.run, pair_seed(cfg.seed, cfg.pair), cfg.ppo.rollout_per_partner)
+        base_ppo_config(
+            RLlibGame,
+            game_env_config(cfg.env, cfg.env_config),
+            cfg.ppo,
+            cfg.run,
+            pair_seed(cfg.seed, cfg.pair),
+            cfg.ppo.rollout_per_partner,
+        )
         # A list, not a set: see build_ppo_config.
         .multi_agent(policies=list(specs), policy_mapping_fn=SeatMapping(cfg.shared_seats), policies_to_train=list(specs))
         .rl_module(rl_module_spec=MultiRLModuleSpec(rl_module_specs=specs))
         # Each seat shuffles its minibatches with its own generator: RLlib's global one would
         # serve the seats in the order of a set of agent IDs, which follows the string hash seed.
-        .learners(learner_class=MarginalPPOLearner, learner_config_dict=LearnerSettings(adam_eps=cfg.ppo.adam_eps, shuffle_seeds=shuffle_seeds).config_dict())
+        .learners(
+            learner_class=MarginalPPOLearner,
+            learner_config_dict=LearnerSettings(adam_eps=cfg.ppo.adam_eps, shuffle_seeds=shuffle_seeds).config_dict(),
+        )
     )
 
 
@@ -112,7 +125,9 @@ def seat_partner(module: Any, module_id: str, greedy: bool, seed: int = 0) -> Po
 def selfplay_score(module: Any, cfg: SelfPlayConfig, episodes: int, seed: int) -> float:
     """Mean self-play return of the pair's seat policies, acting as fixed partners would."""
     env = envs.make(cfg.env, **cfg.env_config)
-    seats = {a: seat_partner(module, seat_module_id(cfg, a), cfg.greedy_partners, seed + i) for i, a in enumerate(env.possible_agents)}
+    seats = {
+        a: seat_partner(module, seat_module_id(cfg, a), cfg.greedy_partners, seed + i) for i, a in enumerate(env.possible_agents)
+    }
     return float(play_episodes(env, seats, episodes, seed).mean())
 
 
@@ -174,7 +189,11 @@ def write_population(cfg: SelfPlayConfig, results: tune.ResultGrid, folder: Path
         name = f"sp{pair:02d}"
         split = "train" if pair < cfg.train_pairs else "test"
         report_path = Path(r.path) / SELFPLAY_TRIAL_FILE
-        report = json.loads(report_path.read_text()) if report_path.is_file() else {"pair": pair, "passed": False, "error": str(r.error)}
+        report = (
+            json.loads(report_path.read_text())
+            if report_path.is_file()
+            else {"pair": pair, "passed": False, "error": str(r.error)}
+        )
         rows.append({"partner": name, "split": split, **report})
         if not report.get("passed") or r.checkpoint is None:
             continue
@@ -192,7 +211,11 @@ def write_population(cfg: SelfPlayConfig, results: tune.ResultGrid, folder: Path
                 checkpoint=f"partners/{name}",
                 seed=report["seed"],
                 score=report["score"],
-                counterpart={"name": f"{name}-counterpart", "kind": "trained_policy", "params": {"checkpoint": f"counterparts/{name}", **params}},
+                counterpart={
+                    "name": f"{name}-counterpart",
+                    "kind": "trained_policy",
+                    "params": {"checkpoint": f"counterparts/{name}", **params},
+                },
             )
         )
     population = Population(

@@ -55,7 +55,9 @@ def summarize(result: dict[str, Any], setup: EgoSetup, replica: int) -> dict[str
     """Replica `replica`'s part of RLlib's result dict: its env steps, per-partner returns, regulariser, head size."""
     module_returns = result.get("env_runners", {}).get("module_episode_returns_mean", {})
     per_partner = {
-        f"return/{e.name}": float(module_returns[mid]) for e in setup.train if (mid := replica_id(partner_id(e.name), replica)) in module_returns
+        f"return/{e.name}": float(module_returns[mid])
+        for e in setup.train
+        if (mid := replica_id(partner_id(e.name), replica)) in module_returns
     }
     learners = result.get("learners", {}).get(replica_id(TASK_ID, replica), {})
     return {
@@ -71,7 +73,16 @@ def evaluate(module: Any, setup: EgoSetup, episodes: int, seed: int = 0) -> dict
     out: dict[str, Any] = {}
     game = setup.population.env
     for e in setup.train:
-        r = player_return(ego_head_partner(module, setup.head_for(e.name)), game, setup.env_config, e.build(), setup.ego_agent, setup.partner_agent, episodes, seed)
+        r = player_return(
+            ego_head_partner(module, setup.head_for(e.name)),
+            game,
+            setup.env_config,
+            e.build(),
+            setup.ego_agent,
+            setup.partner_agent,
+            episodes,
+            seed,
+        )
         for key, value in r.items():
             out[f"eval/{key}/{e.name}"] = value
     marginals = method(setup.exp.method).marginals
@@ -87,7 +98,12 @@ class EgoTrainable(AlgorithmTrainable):
     """One ego-training trial: its seeds (replicas) train in one PPO algorithm, are evaluated and exported when done."""
 
     def outputs_complete(self, config: dict[str, Any]) -> bool:
-        return _finished({EXPORT_KEY: config.get(EXPORT_KEY) or self.trial_folder, REPLICA_SEEDS: config.get(REPLICA_SEEDS) or [config.get("seed", 0)]})
+        return _finished(
+            {
+                EXPORT_KEY: config.get(EXPORT_KEY) or self.trial_folder,
+                REPLICA_SEEDS: config.get(REPLICA_SEEDS) or [config.get("seed", 0)],
+            }
+        )
 
     def build(self, config: dict[str, Any]) -> None:
         config = dict(config)
@@ -127,7 +143,10 @@ class EgoTrainable(AlgorithmTrainable):
         """Evaluate every replica and export it as a trained-ego folder `<trial>/seed=<s>/`; return the evaluations
         (each replica's under `seed=<s>/`, their mean under the plain keys) and the trial's training time (`wall_s`, `setup_s`)."""
         module = learner_module(self.algo)
-        timing = {"wall_s": self.timings.seconds["iterate"], "setup_s": self.timings.seconds["setup"]}  # training, before the evaluations
+        timing = {
+            "wall_s": self.timings.seconds["iterate"],
+            "setup_s": self.timings.seconds["setup"],
+        }  # training, before the evaluations
         evaluations = []
         for r, rep in enumerate(self.replicas):
             plain = replica_module(module, r, rep)
@@ -175,7 +194,18 @@ def run(
     `resume` and `loggers`).
     """
     first = _checked(raw)[0]
-    return fit(EgoTrainable, raw, replica_param_space(with_absolute_paths(raw, "population")), first.name, storage, address, _checkpoints(first), progress, resume, loggers)
+    return fit(
+        EgoTrainable,
+        raw,
+        replica_param_space(with_absolute_paths(raw, "population")),
+        first.name,
+        storage,
+        address,
+        _checkpoints(first),
+        progress,
+        resume,
+        loggers,
+    )
 
 
 def _checked(raw: dict[str, Any]) -> list[ExperimentConfig]:
@@ -187,7 +217,9 @@ def _checked(raw: dict[str, Any]) -> list[ExperimentConfig]:
 
 
 def _checkpoints(exp: ExperimentConfig) -> tune.CheckpointConfig:
-    return tune.CheckpointConfig(num_to_keep=exp.run.keep_checkpoints, checkpoint_frequency=exp.run.checkpoint_every, checkpoint_at_end=True)
+    return tune.CheckpointConfig(
+        num_to_keep=exp.run.keep_checkpoints, checkpoint_frequency=exp.run.checkpoint_every, checkpoint_at_end=True
+    )
 
 
 def training_jobs(raw: dict[str, Any], folder: Path) -> list[dict[str, Any]]:

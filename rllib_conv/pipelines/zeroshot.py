@@ -125,7 +125,8 @@ class ZeroShotTrainable(AlgorithmTrainable):
         self.runs = list(job["runs"])
         self.plans = [zeroshot_plan(self.cfg, run) for run in self.runs]
         self.head_replicas = [
-            Replica(setup_for(p["heads"], p["old"], p["old"].entries("test")), {TASK_ID: str(p["checkpoint"] / TASK_ID)}) for p in self.plans
+            Replica(setup_for(p["heads"], p["old"], p["old"].entries("test")), {TASK_ID: str(p["checkpoint"] / TASK_ID)})
+            for p in self.plans
         ]
         self.algo = build_algorithm(self.head_replicas)
         self.phase, self.composed = 1, []
@@ -143,7 +144,10 @@ class ZeroShotTrainable(AlgorithmTrainable):
         self.algo = build_algorithm(self.task_replicas)
         if self.cfg.reset_task_logits:
             # Forget the old rules, keep the representation z the conventions are read from.
-            fresh = [reset_logits_state(learner_module(self.algo)[STACK_ID].task_state(r), rep.own_seed) for r, rep in enumerate(self.task_replicas)]
+            fresh = [
+                reset_logits_state(learner_module(self.algo)[STACK_ID].task_state(r), rep.own_seed)
+                for r, rep in enumerate(self.task_replicas)
+            ]
 
             def reset(learner: Any) -> None:
                 for r, state in enumerate(fresh):
@@ -161,11 +165,26 @@ class ZeroShotTrainable(AlgorithmTrainable):
             new, trained, setup = plan["new"], plan["trained"], self.task_replicas[r].setup
             for entry in new.entries("test"):
                 score = player_return(
-                    ego_head_partner(composed, ego_id(entry.name)), new.env, new.env_config, entry.build(), setup.ego_agent, setup.partner_agent, self.cfg.episodes, self.cfg.seed,
+                    ego_head_partner(composed, ego_id(entry.name)),
+                    new.env,
+                    new.env_config,
+                    entry.build(),
+                    setup.ego_agent,
+                    setup.partner_agent,
+                    self.cfg.episodes,
+                    self.cfg.seed,
                 )
                 rows.append(
-                    {"run": run, "method": trained.method, "lam": trained.lam, "seed": trained.seed, "partner": entry.name,
-                     "mean_return": score["mean"], "stderr": score["stderr"], "exact_return": score.get("exact", math.nan)}
+                    {
+                        "run": run,
+                        "method": trained.method,
+                        "lam": trained.lam,
+                        "seed": trained.seed,
+                        "partner": entry.name,
+                        "mean_return": score["mean"],
+                        "stderr": score["stderr"],
+                        "exact_return": score.get("exact", math.nan),
+                    }
                 )
         return rows
 
@@ -176,7 +195,11 @@ class ZeroShotTrainable(AlgorithmTrainable):
         steps = [replica_env_steps(result, r) for r in range(len(replicas))]
         returns = [v for k, v in result["env_runners"].get("module_episode_returns_mean", {}).items() if k.startswith("partner@")]
         head_steps, task_steps = self.plans[0]["head_steps"], self.plans[0]["task_steps"]
-        done_steps = sum(min(s, head_steps) for s in steps) if self.phase == 1 else len(steps) * head_steps + sum(min(s, task_steps) for s in steps)
+        done_steps = (
+            sum(min(s, head_steps) for s in steps)
+            if self.phase == 1
+            else len(steps) * head_steps + sum(min(s, task_steps) for s in steps)
+        )
         out: dict[str, Any] = {
             "phase": self.phase,
             "env_steps": min(steps),
@@ -201,8 +224,14 @@ class ZeroShotTrainable(AlgorithmTrainable):
 def reset_logits_state(task_state: dict[str, torch.Tensor], seed: int) -> dict[str, torch.Tensor]:
     """A task module state with its task-logits layer re-initialised as a fresh module's (seeded from `seed`)."""
     weight = task_state[f"{TASK_LOGITS_LAYER}.weight"]
-    fresh = mlp([weight.shape[1], weight.shape[0]], out_gain=0.01, generator=seeded_generator(stream_seed(seed, "task_logits_reset")))
-    return {**task_state, f"{TASK_LOGITS_LAYER}.weight": fresh[0].weight.detach(), f"{TASK_LOGITS_LAYER}.bias": fresh[0].bias.detach()}
+    fresh = mlp(
+        [weight.shape[1], weight.shape[0]], out_gain=0.01, generator=seeded_generator(stream_seed(seed, "task_logits_reset"))
+    )
+    return {
+        **task_state,
+        f"{TASK_LOGITS_LAYER}.weight": fresh[0].weight.detach(),
+        f"{TASK_LOGITS_LAYER}.bias": fresh[0].bias.detach(),
+    }
 
 
 def run_zeroshots(
@@ -220,18 +249,31 @@ def run_zeroshots(
     """
     cfgs = validated(raws, lambda raw: validate(raw, schema=ZeroShotConfig)[0], "zero-shot")
     runs = [[str(t.resolve()) for run in cfg.runs for t in trial_folders(run)] for cfg in cfgs]
-    plans = {(i, run): zeroshot_plan(cfg, run) for i, (cfg, rs) in enumerate(zip(cfgs, runs)) for run in rs}  # not modular, no new-task partners: fail early
+    plans = {
+        (i, run): zeroshot_plan(cfg, run) for i, (cfg, rs) in enumerate(zip(cfgs, runs)) for run in rs
+    }  # not modular, no new-task partners: fail early
 
     def key(i: int, run: str) -> Hashable:
         plan = plans[(i, run)]
         return packing_key(setup_for(plan["heads"], plan["old"], plan["old"].entries("test")))
 
-    stage = Stage(ZEROSHOT, ZeroShotTrainable, tune.CheckpointConfig(checkpoint_at_end=False), units="runs", table=RESULTS_TABLE, manifest_key="new_population")
+    stage = Stage(
+        ZEROSHOT,
+        ZeroShotTrainable,
+        tune.CheckpointConfig(checkpoint_at_end=False),
+        units="runs",
+        table=RESULTS_TABLE,
+        manifest_key="new_population",
+    )
     return run_packed(stage, raws, cfgs, runs, key, out, storage, address, label, loggers)
 
 
 def run_zeroshot(
-    raw: dict[str, Any], out: str | Path = "zeroshot", storage: str | Path = "runs", address: str | None = None, loggers: Sequence[str] = ()
+    raw: dict[str, Any],
+    out: str | Path = "zeroshot",
+    storage: str | Path = "runs",
+    address: str | None = None,
+    loggers: Sequence[str] = (),
 ) -> pd.DataFrame:
     """Run the three steps for every run in `raw`; write and return one row per (run, test partner)."""
     return next(iter(run_zeroshots([raw], out, storage, address, loggers=loggers).values()))

@@ -149,7 +149,9 @@ class AdaptiveAgent:
     plays the most likely action (ties broken at random) instead of sampling.
     """
 
-    def __init__(self, prior: Prior, step_size: float = DEFAULT_STEP_SIZE, greedy: bool = False, seed: int | list[int] | None = None) -> None:
+    def __init__(
+        self, prior: Prior, step_size: float = DEFAULT_STEP_SIZE, greedy: bool = False, seed: int | list[int] | None = None
+    ) -> None:
         self.prior = prior
         self.partner = PartnerTable(step_size)
         self.greedy = bool(greedy)

@@ -92,7 +92,9 @@ async def json_body(request: Request) -> dict[str, Any]:
     """The request's JSON object; PlayError 415 (not JSON) or 400 (not an object) otherwise."""
     kind = request.headers.get("content-type", "").split(";")[0].strip().lower()
     if kind != "application/json":
-        raise PlayError(415, f"the request body must be JSON sent as Content-Type: application/json, got {kind or 'no Content-Type'!r}")
+        raise PlayError(
+            415, f"the request body must be JSON sent as Content-Type: application/json, got {kind or 'no Content-Type'!r}"
+        )
     try:
         body = json.loads(await request.body())
     except (ValueError, RecursionError):  # JSONDecodeError, UnicodeDecodeError, and ints past Python's digit limit
@@ -139,7 +141,11 @@ def build_app(
         wait = enrolments.wait(request.client.host if request.client else "")
         if wait > 0:
             seconds = max(1, round(wait))
-            raise PlayError(429, f"too many enrolments from your network; please try again in {seconds} seconds", {"Retry-After": str(seconds)})
+            raise PlayError(
+                429,
+                f"too many enrolments from your network; please try again in {seconds} seconds",
+                {"Retry-After": str(seconds)},
+            )
         body = await json_body(request)
         p = study.enrol(body.get("participant"), body.get("consent"), token=body.get("token"))
         return ok({"participant": p.id, "token": p.token, "view": study.view(p)})
@@ -215,7 +221,11 @@ def build_app(
         return csv_response(participants_csv(study.store), "participants.csv")
 
     def csv_response(text: str, name: str) -> Response:
-        return Response(text, media_type="text/csv; charset=utf-8", headers={**PAGE_HEADERS, "Content-Disposition": f'attachment; filename="{name}"'})
+        return Response(
+            text,
+            media_type="text/csv; charset=utf-8",
+            headers={**PAGE_HEADERS, "Content-Disposition": f'attachment; filename="{name}"'},
+        )
 
     async def play_error(request: Request, exc: PlayError) -> Response:
         return error(exc.status, exc.message, exc.headers)
@@ -224,7 +234,11 @@ def build_app(
         if exc.status_code == 404:
             return error(404, f"no page {request.url.path!r}")
         if exc.status_code == 405:
-            return error(405, f"{request.method} is not allowed on {request.url.path}; use {exc.headers.get('Allow', '') if exc.headers else ''}", exc.headers)
+            return error(
+                405,
+                f"{request.method} is not allowed on {request.url.path}; use {exc.headers.get('Allow', '') if exc.headers else ''}",
+                exc.headers,
+            )
         return error(exc.status_code, str(exc.detail))
 
     async def bug(request: Request, exc: Exception) -> Response:

@@ -110,7 +110,13 @@ class BanditRoom(Room):
 
     def _row(self, picks: dict[int, int | None]) -> dict[str, Any]:
         task, context, attempt = self.schedule[self.step]
-        return {"task": task, "context": CONTEXT_NAMES[context], "try": attempt, "action_1": picks[1] + 1, "action_2": picks[2] + 1}
+        return {
+            "task": task,
+            "context": CONTEXT_NAMES[context],
+            "try": attempt,
+            "action_1": picks[1] + 1,
+            "action_2": picks[2] + 1,
+        }
 
     def _prize(self, picks: dict[int, int | None]) -> float:
         task, context, _ = self.schedule[self.step]
@@ -120,7 +126,15 @@ class BanditRoom(Room):
         """Reveal the try both have picked in (already written), learn, start the next one (the agent picks if `next_pick`)."""
         task, context, attempt = self.schedule[self.step]
         prize = self._prize(self.picks)
-        self.history.append({"task": task, "context": CONTEXT_NAMES[context], "try": attempt, "arms": {1: self.picks[1] + 1, 2: self.picks[2] + 1}, "prize": prize})
+        self.history.append(
+            {
+                "task": task,
+                "context": CONTEXT_NAMES[context],
+                "try": attempt,
+                "arms": {1: self.picks[1] + 1, 2: self.picks[2] + 1},
+                "prize": prize,
+            }
+        )
         self.score += prize
         if self.agent is not None:
             self.agent.prior = self.priors[task]
@@ -147,7 +161,10 @@ class BanditRoom(Room):
     def _status(self, seat: int) -> tuple[str, str]:
         """(phase, sentence) for `seat`: whose turn it is."""
         if self.finished:
-            return "finished", f"Session finished: {self.score:g} prize{'' if self.score == 1 else 's'} in {len(self.schedule)} tries. Thank you!"
+            return (
+                "finished",
+                f"Session finished: {self.score:g} prize{'' if self.score == 1 else 's'} in {len(self.schedule)} tries. Thank you!",
+            )
         if self.picks[seat] is None:
             task, context, attempt = self.schedule[self.step]
             if task == "test" and context == 0 and attempt == 1:
@@ -191,4 +208,11 @@ class BanditRoom(Room):
 
     @staticmethod
     def _mine(h: dict[str, Any], seat: int) -> dict[str, Any]:
-        return {"task": h["task"], "context": h["context"], "try": h["try"], "you": h["arms"][seat], "partner": h["arms"][3 - seat], "prize": h["prize"]}
+        return {
+            "task": h["task"],
+            "context": h["context"],
+            "try": h["try"],
+            "you": h["arms"][seat],
+            "partner": h["arms"][3 - seat],
+            "prize": h["prize"],
+        }

@@ -143,10 +143,20 @@ class BlocksRoom(Room):
 
     def _finish_game(self) -> None:
         score = float(self.env.rewards["player_0"])
-        self.results.append({"game": self.game_no, "goal": self.env.goal_grid().tolist(), "grid": self.env.grid.tolist(), "score": score, "moves": self._move_log()})
+        self.results.append(
+            {
+                "game": self.game_no,
+                "goal": self.env.goal_grid().tolist(),
+                "grid": self.env.grid.tolist(),
+                "score": score,
+                "moves": self._move_log(),
+            }
+        )
         self.score += score
         if self.agent is not None:
-            targets = blocks_p1_targets(self.moves) if self.agent_seat == 1 else blocks_p2_targets(self.moves, tuple(self.env.goal))
+            targets = (
+                blocks_p1_targets(self.moves) if self.agent_seat == 1 else blocks_p2_targets(self.moves, tuple(self.env.goal))
+            )
             self.agent.learn(targets)
             if self.agent_seat == 1:
                 self.agent.watch(blocks_p2_moves(self.moves))
@@ -156,7 +166,9 @@ class BlocksRoom(Room):
         with self.lock:
             for row in self.store.moves(self.pair):
                 if row["step"] != self.step or row["game"] != self.game_no:
-                    raise ValueError(f"room {self.pair}: the database holds move {row['step']} of game {row['game']}, expected move {self.step} of game {self.game_no}")
+                    raise ValueError(
+                        f"room {self.pair}: the database holds move {row['step']} of game {row['game']}, expected move {self.step} of game {self.game_no}"
+                    )
                 self.env.step(row["action"])
                 self._record(row["player"], row["action"])
 
@@ -187,11 +199,17 @@ class BlocksRoom(Room):
         with self.lock:
             colour = "red" if seat == 1 else "blue"
             if self.finished:
-                phase, status = "finished", f"Session finished: {self.score:g} points in {self.games} game{'s' if self.games > 1 else ''}. Thank you!"
+                phase, status = (
+                    "finished",
+                    f"Session finished: {self.score:g} points in {self.games} game{'s' if self.games > 1 else ''}. Thank you!",
+                )
             elif self.turn == seat:
                 phase, status = "your_turn", f"Your turn (P{seat}, {colour}): move {len(self.moves) + 1} of {NUM_MOVES}."
             else:
-                phase, status = "their_turn", f"Waiting for {self._partner_words(seat)} (P{self.turn}): move {len(self.moves) + 1} of {NUM_MOVES}."
+                phase, status = (
+                    "their_turn",
+                    f"Waiting for {self._partner_words(seat)} (P{self.turn}): move {len(self.moves) + 1} of {NUM_MOVES}.",
+                )
             out = self._common_view(seat) | {
                 "phase": phase,
                 "status": status,

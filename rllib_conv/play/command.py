@@ -43,41 +43,111 @@ database DB (or its folder) as a user-study CSV that `rllib-conv report --user-s
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """Add the `play` arguments to `p`."""
-    p.add_argument("run", nargs="?", default=None, help="trained-ego trial folder: the agent named 'agent' (bandit: trained on the user-study Train task); or 'export'")
+    p.add_argument(
+        "run",
+        nargs="?",
+        default=None,
+        help="trained-ego trial folder: the agent named 'agent' (bandit: trained on the user-study Train task); or 'export'",
+    )
     # Its own destination: sharing `--db`'s would let an absent positional overwrite `--db FILE`.
-    p.add_argument("export_db", nargs="?", default=None, metavar="db", help="with 'export': the study database (or the study folder holding study.sqlite3)")
-    p.add_argument("--agent", action="append", default=[], metavar="NAME=RUN", help="an agent condition NAME playing the ego in RUN ('oracle': the bandit's true marginals, to pilot without training); repeatable")
-    p.add_argument("--conditions", default=None, help="comma-separated conditions participants are assigned to, balanced: agent names and/or 'human' (default: every agent, or human without any)")
+    p.add_argument(
+        "export_db",
+        nargs="?",
+        default=None,
+        metavar="db",
+        help="with 'export': the study database (or the study folder holding study.sqlite3)",
+    )
+    p.add_argument(
+        "--agent",
+        action="append",
+        default=[],
+        metavar="NAME=RUN",
+        help="an agent condition NAME playing the ego in RUN ('oracle': the bandit's true marginals, to pilot without training); repeatable",
+    )
+    p.add_argument(
+        "--conditions",
+        default=None,
+        help="comma-separated conditions participants are assigned to, balanced: agent names and/or 'human' (default: every agent, or human without any)",
+    )
     p.add_argument("--game", choices=["bandit", "blocks"], default=None, help="the game (default: the agents' game, else bandit)")
-    p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1; 0.0.0.0 for every interface, e.g. behind an HTTPS proxy)")
+    p.add_argument(
+        "--host",
+        default="127.0.0.1",
+        help="address to listen on (default 127.0.0.1; 0.0.0.0 for every interface, e.g. behind an HTTPS proxy)",
+    )
     p.add_argument("--port", type=int, default=8000, help="port (default 8000; 0 picks a free one)")
-    p.add_argument("--test-run", action="append", default=[], metavar="[NAME=]RUN2", help="bandit: ego trained on the Test task, agent NAME's prior there (no NAME: the agent 'agent'); repeatable")
+    p.add_argument(
+        "--test-run",
+        action="append",
+        default=[],
+        metavar="[NAME=]RUN2",
+        help="bandit: ego trained on the Test task, agent NAME's prior there (no NAME: the agent 'agent'); repeatable",
+    )
     p.add_argument(
         "--test-prior",
         choices=["oracle", "uniform"],
         default="oracle",
         help="bandit, agents without --test-run: the Test-task prior: the true marginals (oracle, default) or uniform over arms",
     )
-    p.add_argument("--out", default=None, help="the study folder (default: play_sessions); with 'export': the CSV file to write (default: user_study.csv beside DB)")
+    p.add_argument(
+        "--out",
+        default=None,
+        help="the study folder (default: play_sessions); with 'export': the CSV file to write (default: user_study.csv beside DB)",
+    )
     p.add_argument("--db", default=None, help="the study database (default: OUT/study.sqlite3)")
     p.add_argument("--condition", default=None, help="with 'export': only this condition's tries")
-    p.add_argument("--seat", type=int, choices=[1, 2], default=None, help="the person's seat in agent conditions (default: opposite the trained ego)")
-    p.add_argument("--step-size", type=float, default=3.0, help="the agent's adaptation step size eta (default 3: one observed pick -> 0.95)")
+    p.add_argument(
+        "--seat",
+        type=int,
+        choices=[1, 2],
+        default=None,
+        help="the person's seat in agent conditions (default: opposite the trained ego)",
+    )
+    p.add_argument(
+        "--step-size", type=float, default=3.0, help="the agent's adaptation step size eta (default 3: one observed pick -> 0.95)"
+    )
     p.add_argument("--greedy", action="store_true", help="the agent plays its most likely action instead of sampling")
     p.add_argument(
-        "--adapter", choices=[*names(role="start", surface="play"), *OLD_SPELLINGS], default=FRESH,
+        "--adapter",
+        choices=[*names(role="start", surface="play"), *OLD_SPELLINGS],
+        default=FRESH,
         help="how agents adapt between tries: fresh (the paper's partner module, learnt from the person; default; 'table' is its old spelling) or posterior: also by a posterior over "
         "which training partner's convention the person follows: that partner's head (bandit) or the best response to it (blocks, agent as P1); not in the paper",
     )
     p.add_argument("--games", type=int, default=5, help="blocks: games per session (default 5)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the assignment's tie-breaks, the agent's choices and the blocks goals")
-    p.add_argument("--pair-timeout", type=float, default=300.0, help="seconds a participant of the human condition waits for a partner (default 300)")
-    p.add_argument("--idle-timeout", type=float, default=600.0, help="seconds without a move before a session ends early (default 600)")
-    p.add_argument("--completion-code", default=None, help="the code shown at the end, as the recruitment platform expects (default: a random code per participant)")
-    p.add_argument("--consent", default=None, metavar="FILE", help="text file with the consent form shown first (paragraphs separated by blank lines)")
-    p.add_argument("--admin-token", default=None, help=f"the admin page's token, at least {MIN_ADMIN_TOKEN} characters (default: ${ADMIN_TOKEN_ENV}, never printed; else a random one, printed at start)")
     p.add_argument(
-        "--enrol-limit", type=int, default=DEFAULT_ENROL_LIMIT, metavar="N",
+        "--seed", type=int, default=0, help="seed of the assignment's tie-breaks, the agent's choices and the blocks goals"
+    )
+    p.add_argument(
+        "--pair-timeout",
+        type=float,
+        default=300.0,
+        help="seconds a participant of the human condition waits for a partner (default 300)",
+    )
+    p.add_argument(
+        "--idle-timeout", type=float, default=600.0, help="seconds without a move before a session ends early (default 600)"
+    )
+    p.add_argument(
+        "--completion-code",
+        default=None,
+        help="the code shown at the end, as the recruitment platform expects (default: a random code per participant)",
+    )
+    p.add_argument(
+        "--consent",
+        default=None,
+        metavar="FILE",
+        help="text file with the consent form shown first (paragraphs separated by blank lines)",
+    )
+    p.add_argument(
+        "--admin-token",
+        default=None,
+        help=f"the admin page's token, at least {MIN_ADMIN_TOKEN} characters (default: ${ADMIN_TOKEN_ENV}, never printed; else a random one, printed at start)",
+    )
+    p.add_argument(
+        "--enrol-limit",
+        type=int,
+        default=DEFAULT_ENROL_LIMIT,
+        metavar="N",
         help=f"at most N enrolments (and re-enrolment attempts) per client address per minute; more get 429 (default {DEFAULT_ENROL_LIMIT}; 0: no limit)",
     )
     p.add_argument("--verbose", action="store_true", help="log every HTTP request")
@@ -92,7 +162,9 @@ def run(args: argparse.Namespace) -> None:
     if args.run == EXPORT:
         return _export(args)
     if args.export_db is not None:
-        raise ValueError(f"unexpected argument {args.export_db!r} after RUN (only `play export DB` takes a second one; the study database is --db FILE)")
+        raise ValueError(
+            f"unexpected argument {args.export_db!r} after RUN (only `play export DB` takes a second one; the study database is --db FILE)"
+        )
     if args.condition is not None:
         raise ValueError("--condition is for `play export DB`; to serve, use --conditions")
     token_from_env = not args.admin_token and bool(os.environ.get(ADMIN_TOKEN_ENV))
@@ -135,7 +207,9 @@ def run(args: argparse.Namespace) -> None:
             consent=consent,
         )
     db = Path(args.db) if args.db else out / DB_FILE
-    server = StudyServer(settings, db, host=args.host, port=args.port, admin_token=token, verbose=args.verbose, enrol_limit=args.enrol_limit)
+    server = StudyServer(
+        settings, db, host=args.host, port=args.port, admin_token=token, verbose=args.verbose, enrol_limit=args.enrol_limit
+    )
     conditions = ", ".join(c.name for c in settings.conditions)
     print(f"rllib-conv play: {settings.game} study, conditions {conditions}; database {db}", flush=True)
     if token_from_env:  # a token kept out of the command line stays out of console logs too

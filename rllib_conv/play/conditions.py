@@ -50,7 +50,7 @@ class Condition:
 
     @property
     def kind(self) -> str:
-        """"agent" (a person with an adapting agent) or "human" (two people)."""
+        """ "agent" (a person with an adapting agent) or "human" (two people)."""
         return "agent" if self.agent is not None else "human"
 
 
@@ -106,7 +106,14 @@ class StudySettings:
 
     def replay_settings(self) -> dict[str, Any]:
         """What restored sessions replay with: a restart on the same database must keep these."""
-        return {"game": self.game, "new_task": self.new_task, "tries": self.tries, "games": self.games, "seed": self.seed, "person_seat": self.person_seat}
+        return {
+            "game": self.game,
+            "new_task": self.new_task,
+            "tries": self.tries,
+            "games": self.games,
+            "seed": self.seed,
+            "person_seat": self.person_seat,
+        }
 
 
 def parse_named(values: Sequence[str], option: str, default_name: str | None = None) -> dict[str, str]:
@@ -119,7 +126,9 @@ def parse_named(values: Sequence[str], option: str, default_name: str | None = N
         elif not sep:
             raise ValueError(f"{option} expects NAME=VALUE, got {value!r}")
         if not NAME.match(name):
-            raise ValueError(f"{option}: condition name {name!r} must be 1-32 lower-case letters, digits, '-' or '_', starting with a letter")
+            raise ValueError(
+                f"{option}: condition name {name!r} must be 1-32 lower-case letters, digits, '-' or '_', starting with a letter"
+            )
         if name in out:
             raise ValueError(f"{option} names {name!r} twice")
         if not rest:
@@ -142,7 +151,15 @@ def _test_prior(test_run: str | None, test_prior: str, name: str) -> tuple[Any, 
 
 
 def build_agent(
-    name: str, run: str, game: str | None, test_run: str | None, test_prior: str, step_size: float, greedy: bool, seed: int, adapter: str = FRESH
+    name: str,
+    run: str,
+    game: str | None,
+    test_run: str | None,
+    test_prior: str,
+    step_size: float,
+    greedy: bool,
+    seed: int,
+    adapter: str = FRESH,
 ) -> tuple[str, AgentSettings, bool]:
     """(game, settings, new_task) of the agent `name` with its task module from `run` (or the oracle)."""
     adapt = f"adapts with step size {step_size:g}{', greedy' if greedy else ''}"
@@ -150,13 +167,19 @@ def build_agent(
         adapt += ", and by a posterior over its training partners' conventions (not in the paper)"
     if run == ORACLE:
         if adapter == POSTERIOR:
-            raise ValueError(f"--adapter posterior: --agent {name}=oracle has no training partners' heads; give a trained modular run")
+            raise ValueError(
+                f"--adapter posterior: --agent {name}=oracle has no training partners' heads; give a trained modular run"
+            )
         if game not in (None, "bandit"):
             raise ValueError(f"--agent {name}=oracle: the oracle agent is the bandit's true marginals; --game is {game!r}")
         test, test_words = _test_prior(test_run, test_prior, name)
         priors = {"train": bandit_oracle_prior(user_study_prizes(new_task=False)), "test": test}
         description = f"oracle task module (the true marginals), {adapt}; {test_words}"
-        return "bandit", AgentSettings(priors=priors, ego_seat=1, step_size=step_size, greedy=greedy, seed=seed, description=description), False
+        return (
+            "bandit",
+            AgentSettings(priors=priors, ego_seat=1, step_size=step_size, greedy=greedy, seed=seed, description=description),
+            False,
+        )
 
     from rllib_conv.play.ego_run import convention_source, load_run, require_user_study  # torch and Ray load only with a run
 
@@ -180,7 +203,15 @@ def build_agent(
         new_task = bool(ego.env_config.get("new_task", False))
         priors = {"task": ego.prior}
         description = f"{ego.describe()}; {adapt}"
-    settings = AgentSettings(priors=priors, ego_seat=ego.ego_seat, step_size=step_size, greedy=greedy, seed=seed, description=description, conventions=conventions)
+    settings = AgentSettings(
+        priors=priors,
+        ego_seat=ego.ego_seat,
+        step_size=step_size,
+        greedy=greedy,
+        seed=seed,
+        description=description,
+        conventions=conventions,
+    )
     return game, settings, new_task
 
 
@@ -225,11 +256,15 @@ def build_settings(
     tests = parse_named(test_runs, "--test-run", DEFAULT_AGENT)
     for name in tests:
         if name not in runs:
-            raise ValueError(f"--test-run {name}: no agent {name!r} (agents: {sorted(runs) or 'none; give RUN or --agent NAME=RUN'})")
+            raise ValueError(
+                f"--test-run {name}: no agent {name!r} (agents: {sorted(runs) or 'none; give RUN or --agent NAME=RUN'})"
+            )
     names = [n.strip() for n in conditions.split(",")] if conditions is not None else (list(runs) or [HUMAN])
     for name in names:
         if name != HUMAN and name not in runs:
-            raise ValueError(f"--conditions: {name!r} is neither {HUMAN!r} nor an agent given as RUN or --agent NAME=RUN (agents: {sorted(runs) or 'none'})")
+            raise ValueError(
+                f"--conditions: {name!r} is neither {HUMAN!r} nor an agent given as RUN or --agent NAME=RUN (agents: {sorted(runs) or 'none'})"
+            )
     unused = sorted(set(runs) - set(names))
     if unused:
         raise ValueError(f"--conditions {','.join(names)} leaves out the agent(s) {unused}; list them or drop them")
@@ -240,7 +275,9 @@ def build_settings(
         if name == HUMAN:
             built[name] = Condition(HUMAN, None, "two participants paired with each other")
             continue
-        agent_game, agent, new_task = build_agent(name, runs[name], game, tests.get(name), test_prior, step_size, greedy, seed, adapter)
+        agent_game, agent, new_task = build_agent(
+            name, runs[name], game, tests.get(name), test_prior, step_size, greedy, seed, adapter
+        )
         game = game or agent_game
         if agent_game != game:
             raise ValueError(f"--agent {name}: trained on {agent_game!r}, but the study plays {game!r}")
@@ -248,7 +285,9 @@ def build_settings(
         built[name] = Condition(name, agent, agent.description)
     if len(set(new_tasks.values())) > 1:
         raise ValueError(f"the agents were trained on different blocks tasks ({new_tasks}); one study plays one task")
-    settings = StudySettings(game=game or "bandit", conditions=[built[n] for n in names], new_task=any(new_tasks.values()), seed=seed, **options)
+    settings = StudySettings(
+        game=game or "bandit", conditions=[built[n] for n in names], new_task=any(new_tasks.values()), seed=seed, **options
+    )
     for c in settings.conditions:
         if c.agent is not None and settings.person_seat == c.agent.ego_seat == 2 and settings.game == "blocks":
             raise ValueError(f"--seat 2: agent {c.name!r} was trained as P2 and there is no P1 agent; use --seat 1")

@@ -71,7 +71,9 @@ def load_run(path: str | Path, what: str = "RUN") -> EgoRun:
     """
     path = Path(path)
     if not path.exists():
-        raise ValueError(f"{what} {str(path)!r} does not exist; expected a trained-ego trial folder (with {CONFIG_FILE} and checkpoint_*/)")
+        raise ValueError(
+            f"{what} {str(path)!r} does not exist; expected a trained-ego trial folder (with {CONFIG_FILE} and checkpoint_*/)"
+        )
     try:
         trials = trial_folders(path)
     except ValueError as exc:
@@ -83,7 +85,9 @@ def load_run(path: str | Path, what: str = "RUN") -> EgoRun:
     exp = trial_config(trial)
     prior = method(exp.method).prior
     if prior is None:
-        raise ValueError(f"{what} {str(trial)!r} is a {exp.method!r} ego: its task module is not a marginal estimate; use a modular run")
+        raise ValueError(
+            f"{what} {str(trial)!r} is a {exp.method!r} ego: its task module is not a marginal estimate; use a modular run"
+        )
     try:
         checkpoint = last_checkpoint(trial)
     except ValueError as exc:
@@ -96,7 +100,9 @@ def load_run(path: str | Path, what: str = "RUN") -> EgoRun:
 def convention_source(run: EgoRun, what: str) -> ConventionSource:
     """The training partners, the trained ego's head for each, the game's key and planner, for `--adapter posterior`; ValueError naming `what` if the run has no per-partner heads."""
     if method(run.exp.method).single_head:
-        raise ValueError(f"--adapter posterior: {what} {str(run.trial)!r} is a {run.exp.method!r} ego with one shared head; it needs one head per training partner (a modular run)")
+        raise ValueError(
+            f"--adapter posterior: {what} {str(run.trial)!r} is a {run.exp.method!r} ego with one shared head; it needs one head per training partner (a modular run)"
+        )
     known = known_conventions(run.population, load_module(last_checkpoint(run.trial)), f"--adapter posterior: {what}")
     ego_agent = "player_0" if run.ego_seat == 1 else "player_1"
     planner = envs.best_response(run.game, run.env_config, ego_agent)

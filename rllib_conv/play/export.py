@@ -29,7 +29,17 @@ from rllib_conv.play.store import Store, db_path
 
 BLOCKS_COLUMNS: tuple[str, ...] = ("pair", "task", "game", "move", "player", "action", "red_goal", "blue_goal", "score")
 EXPORT_COLUMNS = {"bandit": (*USER_STUDY_COLUMNS, "condition"), "blocks": (*BLOCKS_COLUMNS, "condition")}
-PARTICIPANT_COLUMNS: tuple[str, ...] = ("id", "condition", "pair", "seat", "state", "end_reason", "completion_code", "created", "updated")
+PARTICIPANT_COLUMNS: tuple[str, ...] = (
+    "id",
+    "condition",
+    "pair",
+    "seat",
+    "state",
+    "end_reason",
+    "completion_code",
+    "created",
+    "updated",
+)
 
 
 def _csv(columns: tuple[str, ...], rows: list[dict]) -> str:

@@ -78,7 +78,9 @@ class LimitedH11Protocol(H11Protocol):
         if self.cycle is not None and not self.cycle.response_complete:
             return
         if self.conn.trailing_data[0]:
-            self.transport.write(raw_response(408, f"the request line and headers did not arrive within {self.header_timeout_s:g} s"))
+            self.transport.write(
+                raw_response(408, f"the request line and headers did not arrive within {self.header_timeout_s:g} s")
+            )
         self.transport.close()
 
     def on_response_complete(self) -> None:
@@ -106,7 +108,11 @@ class LimitedH11Protocol(H11Protocol):
         if self.transport.is_closing():
             return
         if self._refusal is not None and self._refusal.error_status_hint == 431:
-            self.transport.write(raw_response(431, f"the request headers are over {MAX_HEADER_BYTES} bytes; at most {MAX_HEADER_BYTES} are accepted"))
+            self.transport.write(
+                raw_response(
+                    431, f"the request headers are over {MAX_HEADER_BYTES} bytes; at most {MAX_HEADER_BYTES} are accepted"
+                )
+            )
         else:
             self.transport.write(raw_response(400, f"malformed HTTP request: {msg.rstrip('.')}"))
         self.transport.close()
@@ -125,7 +131,9 @@ class BodyLimits:
             return await self.app(scope, receive, send)
         header_bytes = sum(len(k) + len(v) for k, v in scope["headers"])
         if header_bytes > MAX_HEADER_BYTES:  # h11 bounds headers still arriving; this, headers that came at once
-            return await self._refuse(send, 431, f"the request headers are {header_bytes} bytes; at most {MAX_HEADER_BYTES} are accepted")
+            return await self._refuse(
+                send, 431, f"the request headers are {header_bytes} bytes; at most {MAX_HEADER_BYTES} are accepted"
+            )
         length = next((v for k, v in scope["headers"] if k == b"content-length"), None)
         if length is not None and int(length) > self.max_body:  # h11 has refused lengths that are not integers
             return await self._refuse(send, 413, f"the request body is {int(length)} bytes; at most {self.max_body} are accepted")
@@ -144,7 +152,9 @@ class BodyLimits:
                     if not message.get("more_body", False):
                         break
         except TimeoutError:
-            return await self._refuse(send, 408, f"the request body did not arrive within {self.timeout_s:g} s (shorter than its Content-Length?)")
+            return await self._refuse(
+                send, 408, f"the request body did not arrive within {self.timeout_s:g} s (shorter than its Content-Length?)"
+            )
         body = b"".join(chunks)
         replayed = False
 
@@ -160,6 +170,10 @@ class BodyLimits:
     @staticmethod
     async def _refuse(send: Any, status: int, message: str) -> None:
         body = error_body(message)
-        headers = [(b"content-type", b"application/json"), (b"content-length", str(len(body)).encode()), (b"connection", b"close")]
+        headers = [
+            (b"content-type", b"application/json"),
+            (b"content-length", str(len(body)).encode()),
+            (b"connection", b"close"),
+        ]
         await send({"type": "http.response.start", "status": status, "headers": headers})
         await send({"type": "http.response.body", "body": body})

@@ -164,7 +164,10 @@ class Room:
         """Refuse a move that does not answer the current step (a repeat, or one sent for a past try)."""
         step = parse_int(payload.get("step"), "step", 0, MAX_STEP)
         if step != current:
-            raise PlayError(409, f"this move answers {what} {step + 1}, but the session is at {what} {current + 1}: it was already played or is out of date")
+            raise PlayError(
+                409,
+                f"this move answers {what} {step + 1}, but the session is at {what} {current + 1}: it was already played or is out of date",
+            )
 
     def close(self) -> None:
         """Stop the room: no more agent moves (the session ended or the server is stopping)."""

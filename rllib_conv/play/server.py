@@ -46,7 +46,9 @@ def bind(host: str, port: int) -> socket.socket:
         sock.listen(1024)
     except OSError as exc:
         sock.close()
-        raise ValueError(f"--port {port}: cannot listen on {host}:{port} ({exc.strerror or exc}); choose another port (0 picks a free one)") from None
+        raise ValueError(
+            f"--port {port}: cannot listen on {host}:{port} ({exc.strerror or exc}); choose another port (0 picks a free one)"
+        ) from None
     sock.setblocking(False)
     return sock
 

@@ -104,7 +104,9 @@ class Outcome:
 class Participant:
     """One scripted participant of the bandit study (module docstring); it thinks 0.5-1.5 x `think_s` seconds before each pick."""
 
-    def __init__(self, client: httpx.AsyncClient, base_url: str, pid: str, seed: int = 0, deadline_s: float = 120.0, think_s: float = 0.0) -> None:
+    def __init__(
+        self, client: httpx.AsyncClient, base_url: str, pid: str, seed: int = 0, deadline_s: float = 120.0, think_s: float = 0.0
+    ) -> None:
         self.client = client
         self.base = base_url.rstrip("/")
         self.ws_url = self.base.replace("http://", "ws://", 1).replace("https://", "wss://", 1) + "/api/live?token="
@@ -192,7 +194,9 @@ class Participant:
                 if self.view.get("phase") == "choose":
                     if self.think_s > 0:
                         await asyncio.sleep(self.rng.uniform(0.5, 1.5) * self.think_s)
-                    r = await self._request("move", "POST", "/api/move", {"token": self.token, "step": self.view["step"], "arm": self._arm()})
+                    r = await self._request(
+                        "move", "POST", "/api/move", {"token": self.token, "step": self.view["step"], "arm": self._arm()}
+                    )
                     if r.status_code == 200:
                         self._take(r.json())
                         continue

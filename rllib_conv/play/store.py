@@ -180,7 +180,9 @@ def header_version(path: Path) -> int | None:
 
 def newer_schema_error(path: Path, version: int) -> ValueError:
     """The refusal of a database written by a later release."""
-    return ValueError(f"{str(path)!r} has schema version {version}, newer than this release's {SCHEMA_VERSION}; use a newer rllib-conv")
+    return ValueError(
+        f"{str(path)!r} has schema version {version}, newer than this release's {SCHEMA_VERSION}; use a newer rllib-conv"
+    )
 
 
 class Store:
@@ -193,7 +195,9 @@ class Store:
     def __init__(self, path: str | Path, *, readonly: bool = False) -> None:
         self.path = Path(path)
         if readonly and not self.path.is_file():
-            raise ValueError(f"DB {str(self.path)!r} does not exist; expected a study database ({DB_FILE}) or the study folder holding it")
+            raise ValueError(
+                f"DB {str(self.path)!r} does not exist; expected a study database ({DB_FILE}) or the study folder holding it"
+            )
         if self.path.is_dir():
             raise ValueError(f"{str(self.path)!r} is a folder; expected a study database file")
         stamped = header_version(self.path)
@@ -218,7 +222,9 @@ class Store:
             raise newer_schema_error(self.path, version)
         if version < SCHEMA_VERSION:
             if readonly:
-                raise ValueError(f"{str(self.path)!r} has schema version {version}; open it once with `rllib-conv play` to migrate it to {SCHEMA_VERSION}")
+                raise ValueError(
+                    f"{str(self.path)!r} has schema version {version}; open it once with `rllib-conv play` to migrate it to {SCHEMA_VERSION}"
+                )
             self._migrate(version)
 
     def _migrate(self, version: int) -> None:
@@ -267,7 +273,9 @@ class Store:
         stored = self.settings()
         for key, value in settings.items():
             if key in stored and stored[key] != str(value):
-                raise ValueError(f"the study in {str(self.path)!r} was started with {key} {stored[key]}, not {value}; use the same setting or another study folder")
+                raise ValueError(
+                    f"the study in {str(self.path)!r} was started with {key} {stored[key]}, not {value}; use the same setting or another study folder"
+                )
         old = {r["name"]: (r["kind"], r["description"]) for r in self._read("SELECT name, kind, description FROM conditions")}
         for name, (kind, description) in conditions.items():
             if name in old and old[name] != (kind, description):
@@ -276,12 +284,21 @@ class Store:
                     "give it the same agent and settings, or another name"
                 )
         for name in sorted(set(old) - set(conditions)):
-            open_ = self._read("SELECT COUNT(*) FROM participants WHERE condition = ? AND state IN ('waiting', 'playing')", (name,))[0][0]
+            open_ = self._read(
+                "SELECT COUNT(*) FROM participants WHERE condition = ? AND state IN ('waiting', 'playing')", (name,)
+            )[0][0]
             if open_:
-                raise ValueError(f"condition {name!r} of the study in {str(self.path)!r} has {open_} unfinished session(s); keep it in --conditions until they end")
+                raise ValueError(
+                    f"condition {name!r} of the study in {str(self.path)!r} has {open_} unfinished session(s); keep it in --conditions until they end"
+                )
         with self._write() as db:
-            db.executemany("INSERT OR IGNORE INTO settings (key, value) VALUES (?, ?)", [(k, str(v)) for k, v in settings.items()])
-            db.executemany("INSERT OR IGNORE INTO conditions (name, kind, description) VALUES (?, ?, ?)", [(n, k, d) for n, (k, d) in conditions.items()])
+            db.executemany(
+                "INSERT OR IGNORE INTO settings (key, value) VALUES (?, ?)", [(k, str(v)) for k, v in settings.items()]
+            )
+            db.executemany(
+                "INSERT OR IGNORE INTO conditions (name, kind, description) VALUES (?, ?, ?)",
+                [(n, k, d) for n, (k, d) in conditions.items()],
+            )
 
     def count_start(self) -> int:
         """Count one more server start on this database; return how many there have been (1 for a new study)."""
@@ -310,7 +327,10 @@ class Store:
 
     def condition_descriptions(self) -> dict[str, tuple[str, str]]:
         """Every condition ever run in this study: name -> (kind, description)."""
-        return {r["name"]: (r["kind"], r["description"]) for r in self._read("SELECT name, kind, description FROM conditions ORDER BY rowid")}
+        return {
+            r["name"]: (r["kind"], r["description"])
+            for r in self._read("SELECT name, kind, description FROM conditions ORDER BY rowid")
+        }
 
     # -- participants and rooms ----------------------------------------------------------
     def add_participant(self, p: Participant) -> None:
@@ -333,7 +353,10 @@ class Store:
                 (game, condition, agent_seat, now, now),
             ).lastrowid
             for seat, pid in seats.items():
-                db.execute("UPDATE participants SET pair = ?, seat = ?, state = 'playing', updated = ? WHERE id = ?", (pair, seat, now, pid))
+                db.execute(
+                    "UPDATE participants SET pair = ?, seat = ?, state = 'playing', updated = ? WHERE id = ?",
+                    (pair, seat, now, pid),
+                )
             return int(pair)
 
     def close_room(self, pair: int | None, state: str, reason: str | None, codes: Mapping[str, str], now: float) -> None:
@@ -373,7 +396,17 @@ class Store:
             )
             db.execute("UPDATE rooms SET updated = ? WHERE pair = ?", (now, pair))
 
-    def add_move(self, pair: int, step: int, game: int, move: int, player: int, action: int, now: float, result: tuple[int, int, int] | None = None) -> None:
+    def add_move(
+        self,
+        pair: int,
+        step: int,
+        game: int,
+        move: int,
+        player: int,
+        action: int,
+        now: float,
+        result: tuple[int, int, int] | None = None,
+    ) -> None:
         """Record blocks move `step` of room `pair`; `result` (red goal, blue goal, score) when it ends game `game`."""
         with self._write() as db:
             db.execute(
@@ -381,7 +414,9 @@ class Store:
                 (pair, step, game, move, player, action, now),
             )
             if result is not None:
-                db.execute("INSERT INTO games (pair, game, red_goal, blue_goal, score) VALUES (?, ?, ?, ?, ?)", (pair, game, *result))
+                db.execute(
+                    "INSERT INTO games (pair, game, red_goal, blue_goal, score) VALUES (?, ?, ?, ?, ?)", (pair, game, *result)
+                )
             db.execute("UPDATE rooms SET updated = ? WHERE pair = ?", (now, pair))
 
     def picks(self, pair: int) -> list[sqlite3.Row]:
@@ -404,12 +439,17 @@ class Store:
 
     def counts(self) -> dict[str, dict[str, int]]:
         """Per condition: participants per state, rooms, finished tries and moves."""
-        out: dict[str, dict[str, int]] = {name: {s: 0 for s in PARTICIPANT_STATES} | {"rooms": 0, "tries": 0, "moves": 0} for name in self.condition_descriptions()}
+        out: dict[str, dict[str, int]] = {
+            name: {s: 0 for s in PARTICIPANT_STATES} | {"rooms": 0, "tries": 0, "moves": 0}
+            for name in self.condition_descriptions()
+        }
         for r in self._read("SELECT condition, state, COUNT(*) AS n FROM participants GROUP BY condition, state"):
             out[r["condition"]][r["state"]] = r["n"]
         for r in self._read("SELECT condition, COUNT(*) AS n FROM rooms GROUP BY condition"):
             out[r["condition"]]["rooms"] = r["n"]
         for table in ("tries", "moves"):
-            for r in self._read(f"SELECT r.condition, COUNT(*) AS n FROM {table} t JOIN rooms r USING (pair) GROUP BY r.condition"):
+            for r in self._read(
+                f"SELECT r.condition, COUNT(*) AS n FROM {table} t JOIN rooms r USING (pair) GROUP BY r.condition"
+            ):
                 out[r["condition"]][table] = r["n"]
         return out

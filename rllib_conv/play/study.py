@@ -67,7 +67,13 @@ class Study:
     threads); `clock` gives the time the timeouts are measured with.
     """
 
-    def __init__(self, settings: StudySettings, store: Store, call_later: CallLater = thread_call_later, clock: Callable[[], float] = time.time) -> None:
+    def __init__(
+        self,
+        settings: StudySettings,
+        store: Store,
+        call_later: CallLater = thread_call_later,
+        clock: Callable[[], float] = time.time,
+    ) -> None:
         self.settings = settings
         self.store = store
         self.call_later = call_later
@@ -109,13 +115,16 @@ class Study:
             raise PlayError(400, f"consent must be true (the participant agreed to the consent form), got {shown_value(consent)}")
         if participant_id is not None and not (isinstance(participant_id, str) and PARTICIPANT_ID.fullmatch(participant_id)):
             raise PlayError(
-                400, f"participant must be an id of 1-64 letters, digits, '.', '-' or '_' (as recruitment platforms pass it), got {shown_value(participant_id)}"
+                400,
+                f"participant must be an id of 1-64 letters, digits, '.', '-' or '_' (as recruitment platforms pass it), got {shown_value(participant_id)}",
             )
         with self._lock:
             if participant_id in self.participants:
                 p = self.participants[participant_id]
                 # surrogatepass: JSON may carry a lone surrogate ("\ud800"), which plain encode() refuses
-                if not (isinstance(token, str) and secrets.compare_digest(token.encode("utf-8", "surrogatepass"), p.token.encode())):
+                if not (
+                    isinstance(token, str) and secrets.compare_digest(token.encode("utf-8", "surrogatepass"), p.token.encode())
+                ):
                     self._refuse_resume(p)
                 self._seat_with_agent(p)  # an earlier enrolment whose room could not be opened
                 return p
@@ -205,8 +214,26 @@ class Study:
             if a.conventions is not None and in_ego_seat:  # the heads and the plan are the trained seat's
                 agent = a.conventions.agent(agent, prior, seed=[a.seed, record.pair, 1])
         if s.game == "bandit":
-            return BanditRoom(record.pair, self.store, agent, record.agent_seat, condition.agent.priors if agent else None, tries=s.tries, call_later=self._call_later)
-        return BlocksRoom(record.pair, self.store, agent, record.agent_seat, s.new_task, s.games, s.seed, s.agent_delay, call_later=self._call_later)
+            return BanditRoom(
+                record.pair,
+                self.store,
+                agent,
+                record.agent_seat,
+                condition.agent.priors if agent else None,
+                tries=s.tries,
+                call_later=self._call_later,
+            )
+        return BlocksRoom(
+            record.pair,
+            self.store,
+            agent,
+            record.agent_seat,
+            s.new_task,
+            s.games,
+            s.seed,
+            s.agent_delay,
+            call_later=self._call_later,
+        )
 
     def _call_later(self, delay: float, callback: Callable[[], None]) -> Any:
         """`call_later` for rooms: the callback takes the study's lock first, as requests do (one lock order, no deadlock)."""
@@ -236,7 +263,10 @@ class Study:
     def _end(self, pair: int | None, state: str, reason: str | None, pids: list[str] | None = None) -> None:
         """End room `pair` (or, with None, the participants `pids` who have none); if the write fails, a later call retries."""
         pids = list(self._seated[pair].values()) if pair is not None else pids or []
-        codes = {pid: self.settings.completion_code or "".join(secrets.choice(CODE_ALPHABET) for _ in range(CODE_LENGTH)) for pid in pids}
+        codes = {
+            pid: self.settings.completion_code or "".join(secrets.choice(CODE_ALPHABET) for _ in range(CODE_LENGTH))
+            for pid in pids
+        }
         now = self.clock()
         try:
             self.store.close_room(pair, state, reason, codes, now)
@@ -323,9 +353,19 @@ class Study:
             out.update({"participant": p.id, "completion_code": p.completion_code, "version": self.version})
             if p.state == "waiting":
                 left = max(0, round(self.settings.pair_timeout - (self.clock() - p.created)))
-                out.update({"phase": "waiting_for_partner", "status": f"Waiting for another participant to join (at most {left} more seconds). Keep this page open."})
+                out.update(
+                    {
+                        "phase": "waiting_for_partner",
+                        "status": f"Waiting for another participant to join (at most {left} more seconds). Keep this page open.",
+                    }
+                )
             elif p.state == "ended":
-                out.update({"phase": "ended", "status": f"This session has ended early: {END_REASONS.get(p.end_reason, p.end_reason)}. Thank you for your time."})
+                out.update(
+                    {
+                        "phase": "ended",
+                        "status": f"This session has ended early: {END_REASONS.get(p.end_reason, p.end_reason)}. Thank you for your time.",
+                    }
+                )
             elif p.state == "finished":
                 out["phase"] = "finished"
                 if room is None:
@@ -337,7 +377,9 @@ class Study:
         """End what has waited too long: participants without a partner, rooms where nobody moved."""
         with self._lock:
             now = self.clock()
-            late = [p.id for p in self.participants.values() if p.state == "waiting" and now - p.created > self.settings.pair_timeout]
+            late = [
+                p.id for p in self.participants.values() if p.state == "waiting" and now - p.created > self.settings.pair_timeout
+            ]
             if late:
                 self._end(None, "ended", "no_partner", late)
             for pair, at in list(self._activity.items()):

@@ -64,7 +64,11 @@ def packing_key(setup: EgoSetup) -> str:
     """A key equal for exactly the setups that can be replicas of one algorithm (game, env config, settings, seats, partner count)."""
     exp = setup.exp
     shared = {k: getattr(exp, k) for k in PACKED_KEYS}
-    parts = (setup.population.env, setup.env_config, {k: v.model_dump() if hasattr(v, "model_dump") else v for k, v in shared.items()})
+    parts = (
+        setup.population.env,
+        setup.env_config,
+        {k: v.model_dump() if hasattr(v, "model_dump") else v for k, v in shared.items()},
+    )
     return json.dumps([*parts, setup.ego_agent, setup.partner_agent, len(setup.train)], sort_keys=True, default=str)
 
 
@@ -81,7 +85,9 @@ def _check_packable(replicas: list[Replica]) -> None:
                 differs.append("game")
             if len(s.train) != len(first.train) or (s.ego_agent, s.partner_agent) != (first.ego_agent, first.partner_agent):
                 differs.append("partner count or seats")
-            raise ValueError(f"replicas must differ in seed, partners and weights only; replica {rep.own_seed} differs in {differs}")
+            raise ValueError(
+                f"replicas must differ in seed, partners and weights only; replica {rep.own_seed} differs in {differs}"
+            )
 
 
 def module_specs(setup: EgoSetup, load: dict[str, str] | None = None, seed: int | None = None) -> dict[str, RLModuleSpec]:
@@ -94,10 +100,22 @@ def module_specs(setup: EgoSetup, load: dict[str, str] | None = None, seed: int 
     exp = setup.exp
     ego_obs, ego_act, p_obs, p_act = _spaces(setup)
     task_config, head_config = _module_configs(setup)
-    seeded = (lambda mid: {} if seed is None else {"init_seed": stream_seed(seed, mid)})  # noqa: E731
-    specs = {TASK_ID: RLModuleSpec(module_class=TaskModule, observation_space=ego_obs, action_space=ego_act, model_config={**task_config, **seeded(TASK_ID)})}
+    seeded = lambda mid: {} if seed is None else {"init_seed": stream_seed(seed, mid)}  # noqa: E731
+    specs = {
+        TASK_ID: RLModuleSpec(
+            module_class=TaskModule,
+            observation_space=ego_obs,
+            action_space=ego_act,
+            model_config={**task_config, **seeded(TASK_ID)},
+        )
+    }
     for mid in setup.head_ids:
-        specs[mid] = RLModuleSpec(module_class=PartnerHeadModule, observation_space=ego_obs, action_space=ego_act, model_config={**head_config, **seeded(mid)})
+        specs[mid] = RLModuleSpec(
+            module_class=PartnerHeadModule,
+            observation_space=ego_obs,
+            action_space=ego_act,
+            model_config={**head_config, **seeded(mid)},
+        )
     specs.update(_partner_specs(setup, p_obs, p_act, exp.seed if seed is None else seed, replica=None, seeded=seed is not None))
     for mid, path in (load or {}).items():
         specs[mid].load_state_path = str(path)
@@ -107,7 +125,12 @@ def module_specs(setup: EgoSetup, load: dict[str, str] | None = None, seed: int 
 def _spaces(setup: EgoSetup) -> tuple:
     """The ego's and the partner's observation and action spaces, as the RLlib adapter gives them."""
     env = PettingZooMultiAgentEnv(envs.make(setup.population.env, **setup.env_config))
-    return (env.observation_spaces[setup.ego_agent], env.action_spaces[setup.ego_agent], env.observation_spaces[setup.partner_agent], env.action_spaces[setup.partner_agent])
+    return (
+        env.observation_spaces[setup.ego_agent],
+        env.action_spaces[setup.ego_agent],
+        env.observation_spaces[setup.partner_agent],
+        env.action_spaces[setup.partner_agent],
+    )
 
 
 def _module_configs(setup: EgoSetup) -> tuple[dict, dict]:
@@ -120,14 +143,21 @@ def _module_configs(setup: EgoSetup) -> tuple[dict, dict]:
     return task_config, {**sizes, "use_task_logits": method(exp.method).task_logits != "unused"}
 
 
-def _partner_specs(setup: EgoSetup, obs_space: Any, act_space: Any, seed: int, replica: int | None, seeded: bool) -> dict[str, RLModuleSpec]:
+def _partner_specs(
+    setup: EgoSetup, obs_space: Any, act_space: Any, seed: int, replica: int | None, seeded: bool
+) -> dict[str, RLModuleSpec]:
     """The fixed partners' specs; a stochastic partner's RNG seeded from `seed` (per module when `seeded`)."""
     specs = {}
     for i, entry in enumerate(setup.train):
         mid = partner_id(entry.name)
         spec = {"name": entry.name, "kind": entry.kind, "params": entry.params}
         module_seed = stream_seed(seed, mid) if seeded else partner_seed(seed, i)
-        specs[replica_id(mid, replica)] = RLModuleSpec(module_class=FixedPartnerModule, observation_space=obs_space, action_space=act_space, model_config={"partner": spec, "seed": module_seed})
+        specs[replica_id(mid, replica)] = RLModuleSpec(
+            module_class=FixedPartnerModule,
+            observation_space=obs_space,
+            action_space=act_space,
+            model_config={"partner": spec, "seed": module_seed},
+        )
     return specs
 
 
@@ -146,15 +176,21 @@ def stacked_specs(replicas: list[Replica]) -> dict[str, RLModuleSpec]:
         "head_seeds": [[stream_seed(rep.own_seed, mid) for mid in rep.setup.head_ids] for rep in replicas],
         "sample_seeds": [sampling_seed(rep.own_seed) for rep in replicas],
     }
-    specs = {STACK_ID: RLModuleSpec(module_class=EgoStack, observation_space=ego_obs, action_space=ego_act, model_config=stack_config)}
+    specs = {
+        STACK_ID: RLModuleSpec(module_class=EgoStack, observation_space=ego_obs, action_space=ego_act, model_config=stack_config)
+    }
     for r, rep in enumerate(replicas):
         for h, mid in enumerate(rep.setup.head_ids):
-            specs[replica_id(mid, r)] = RLModuleSpec(module_class=HeadView, observation_space=ego_obs, action_space=ego_act, model_config={"replica": r, "head": h})
+            specs[replica_id(mid, r)] = RLModuleSpec(
+                module_class=HeadView, observation_space=ego_obs, action_space=ego_act, model_config={"replica": r, "head": h}
+            )
         specs.update(_partner_specs(rep.setup, p_obs, p_act, rep.own_seed, replica=r, seeded=True))
     return specs
 
 
-def base_ppo_config(env_class: type, env_config: dict, ppo: PPOSettings, run: RunSettings, seed: int, batch_size: int) -> PPOConfig:
+def base_ppo_config(
+    env_class: type, env_config: dict, ppo: PPOSettings, run: RunSettings, seed: int, batch_size: int
+) -> PPOConfig:
     """The PPOConfig pieces shared by ego and self-play training (env, runners, learner, PPO).
 
     `env_class` and `env_config` are the RLlib env: `ReplicatedGame` for egos, `RLlibGame`
@@ -236,13 +272,14 @@ def build_ppo_config(setup: EgoSetup | list[Replica], load: dict[str, str] | Non
     )
     trained = [STACK_ID, *(replica_id(mid, r) for r, rep in enumerate(replicas) for mid in rep.setup.head_ids)]
     settings = exp.learner_settings()
-    shuffle_seeds = {replica_id(mid, r): shuffle_seed(rep.own_seed, mid) for r, rep in enumerate(replicas) for mid in rep.setup.head_ids}
+    shuffle_seeds = {
+        replica_id(mid, r): shuffle_seed(rep.own_seed, mid) for r, rep in enumerate(replicas) for mid in rep.setup.head_ids
+    }
     batch = ppo.rollout_per_partner * len(first.train)
     env_config = replicated_env_config(first.population.env, first.env_config, [rep.own_seed for rep in replicas], BASE_SEED)
     config = base_ppo_config(ReplicatedGame, env_config, ppo, exp.run, BASE_SEED, batch)
     return (
-        config
-        .multi_agent(
+        config.multi_agent(
             # A list, not a set: module build order must not depend on string hashing,
             # which differs per process (Tune runs each trial in its own).
             policies=list(specs),
@@ -250,7 +287,9 @@ def build_ppo_config(setup: EgoSetup | list[Replica], load: dict[str, str] | Non
             policies_to_train=trained,
         )
         .rl_module(rl_module_spec=MultiRLModuleSpec(multi_rl_module_class=StackedEgoMultiRLModule, rl_module_specs=specs))
-        .learners(learner_class=MarginalPPOLearner, learner_config_dict={**settings.config_dict(), "shuffle_seeds": shuffle_seeds})
+        .learners(
+            learner_class=MarginalPPOLearner, learner_config_dict={**settings.config_dict(), "shuffle_seeds": shuffle_seeds}
+        )
     )
 
 

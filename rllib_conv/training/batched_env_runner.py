@@ -119,7 +119,14 @@ class RunningEpisode:
         all_term, all_trunc = bool(terms.get("__all__")), bool(truncs.get("__all__"))
         out_now = {a for flags in (terms, truncs) for a, v in flags.items() if v and a != "__all__"}
         term_all = all_term or all(a in self.ended or a in out_now for a in self.modules)
-        touched = (set(obs) | set(actions) | set(rewards) | set(terms) | set(truncs) | (set(self.modules) if all_term or all_trunc else set())) - {"__all__"}
+        touched = (
+            set(obs)
+            | set(actions)
+            | set(rewards)
+            | set(terms)
+            | set(truncs)
+            | (set(self.modules) if all_term or all_trunc else set())
+        ) - {"__all__"}
         for aid in touched:
             if aid in self.ended:
                 continue
@@ -198,20 +205,40 @@ class BatchedEnvRunner(LeanEnvRunner):
             cached = self.__dict__["_can_batch"] = (
                 bool(games)
                 and all(isinstance(g, (ReplicatedGame, PettingZooMultiAgentEnv)) for g in games)
-                and (isinstance(self.module, StackedEgoMultiRLModule) or (isinstance(self.module, MultiRLModule) and all(isinstance(m, TaskModule) for m in self.module._rl_modules.values())))
+                and (
+                    isinstance(self.module, StackedEgoMultiRLModule)
+                    or (
+                        isinstance(self.module, MultiRLModule)
+                        and all(isinstance(m, TaskModule) for m in self.module._rl_modules.values())
+                    )
+                )
                 and not self.config.restart_failed_sub_environments
                 and self.config.batch_mode == "truncate_episodes"
                 and self.config.count_steps_by == "env_steps"
             )
         return cached
 
-    def sample(self, *, num_timesteps: int | None = None, num_episodes: int | None = None, explore: bool | None = None, random_actions: bool = False, force_reset: bool = False) -> list:
+    def sample(
+        self,
+        *,
+        num_timesteps: int | None = None,
+        num_episodes: int | None = None,
+        explore: bool | None = None,
+        random_actions: bool = False,
+        force_reset: bool = False,
+    ) -> list:
         explore = self.config.explore if explore is None else explore
         lanes = self.__dict__.get("_lanes")
         if num_episodes is not None or random_actions or not explore or not self._batched():
             self.__dict__["_lanes"] = None
             reset = force_reset or lanes is not None  # the envs are mid-episode for RLlib's own bookkeeping
-            return super().sample(num_timesteps=num_timesteps, num_episodes=num_episodes, explore=explore, random_actions=random_actions, force_reset=reset)
+            return super().sample(
+                num_timesteps=num_timesteps,
+                num_episodes=num_episodes,
+                explore=explore,
+                random_actions=random_actions,
+                force_reset=reset,
+            )
         if num_timesteps is None:
             num_timesteps = self.config.get_rollout_fragment_length(self.worker_index) * self.num_envs
         with self.metrics.log_time(SAMPLE_TIMER):
@@ -261,7 +288,9 @@ class BatchedEnvRunner(LeanEnvRunner):
             return getattr(self.env.envs[i], method)(*args)
         except Exception as e:
             self.metrics.log_value(NUM_ENV_STEP_FAILURES_LIFETIME, 1, reduce="lifetime_sum")
-            raise RuntimeError(f"sub-environment {i} failed in {method}(); run.restart_failed_sub_environments: true recreates it instead") from e
+            raise RuntimeError(
+                f"sub-environment {i} failed in {method}(); run.restart_failed_sub_environments: true recreates it instead"
+            ) from e
 
     def _act(self, lanes: list[RunningEpisode | None]) -> tuple[list[dict], list[dict]]:
         """One forward pass for every agent to act, rows per module in lane order; actions and log-probabilities per lane."""
@@ -277,7 +306,9 @@ class BatchedEnvRunner(LeanEnvRunner):
         batch = {}
         for mid, where in rows.items():
             last = [lanes[i].obs[aid][-1] for i, aid in where]
-            batch[mid] = {Columns.OBS: {key: torch.from_numpy(np.stack([o[key] for o in last])) for key in (RLLIB_OBS_KEY, RLLIB_MASK_KEY)}}
+            batch[mid] = {
+                Columns.OBS: {key: torch.from_numpy(np.stack([o[key] for o in last])) for key in (RLLIB_OBS_KEY, RLLIB_MASK_KEY)}
+            }
         out = self.module.forward_exploration(batch)
         for mid, where in rows.items():
             if Columns.ACTIONS not in out[mid]:

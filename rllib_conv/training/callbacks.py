@@ -100,7 +100,9 @@ class ProgressTable(_ThrottledPrint):
             cfg, result = trial.config or {}, trial.last_result or {}
             row = {"trial": trial.trial_id, "status": trial.status}
             # The swept values (grid keys, nested ones as "model/z_dim"), else the usual identifiers.
-            swept = getattr(trial, "evaluated_params", None) or {k: cfg.get(k) for k in ("population", "method", "lam", "seed") if k in cfg}
+            swept = getattr(trial, "evaluated_params", None) or {
+                k: cfg.get(k) for k in ("population", "method", "lam", "seed") if k in cfg
+            }
             row.update(swept)
             row["iter"] = result.get("training_iteration", 0)
             for key, label in self.METRICS:
@@ -160,7 +162,12 @@ class StageProgress(_ThrottledPrint):
     """
 
     def __init__(
-        self, label: str, every: float = 30.0, log: Any = None, units: Callable[[dict[str, Any]], int] | None = None, stops_early: str | None = None
+        self,
+        label: str,
+        every: float = 30.0,
+        log: Any = None,
+        units: Callable[[dict[str, Any]], int] | None = None,
+        stops_early: str | None = None,
     ) -> None:
         self.label, self.every, self.log, self.units, self.stops_early = label, every, log, units, stops_early
         self._start = time.monotonic()
@@ -278,7 +285,7 @@ class TrimRerunResults(Callback):
     def _trim(self, path: Path, before: int) -> None:
         lines = path.read_text().splitlines(keepends=True)
         header = lines[:1] if path.suffix == ".csv" else []
-        rows = lines[len(header):]
+        rows = lines[len(header) :]
         keep = header + [line for line, it in zip(rows, self._row_iterations(path, lines)) if it is not None and it < before]
         write_text_atomically(path, "".join(keep))
 

@@ -19,7 +19,9 @@ from rllib_conv.partners.trained import PolicyPartner, load_rl_module
 
 
 def _tensors(obs: np.ndarray, mask: np.ndarray | None) -> tuple[torch.Tensor, torch.Tensor | None]:
-    return torch.as_tensor(np.asarray(obs), dtype=torch.float32), None if mask is None else torch.as_tensor(np.asarray(mask), dtype=torch.float32)
+    return torch.as_tensor(np.asarray(obs), dtype=torch.float32), None if mask is None else torch.as_tensor(
+        np.asarray(mask), dtype=torch.float32
+    )
 
 
 @torch.no_grad()
@@ -60,7 +62,9 @@ def bandit_exact_return(ego: Partner, env: CollaborativeBanditEnv, partner: Part
 def check_episodes(episodes: int, env_name: str, env_config: dict[str, Any]) -> None:
     """ValueError unless `episodes` can score this game: 0 (no sampled episodes) only where the return is exact (one-step bandits)."""
     if episodes == 0 and not isinstance(envs.make(env_name, **env_config), CollaborativeBanditEnv):
-        raise ValueError(f"episodes=0 scores by the exact expected return, which only the one-step bandits have; {env_name!r} needs episodes >= 1")
+        raise ValueError(
+            f"episodes=0 scores by the exact expected return, which only the one-step bandits have; {env_name!r} needs episodes >= 1"
+        )
 
 
 def player_return(
@@ -83,7 +87,10 @@ def player_return(
     out = {"mean": math.nan, "stderr": math.nan}
     if episodes:
         scores = play_episodes(env, {ego_agent: ego, partner_agent: partner}, episodes, seed)
-        out = {"mean": float(scores.mean()), "stderr": float(scores.std(ddof=1) / np.sqrt(len(scores))) if len(scores) > 1 else 0.0}
+        out = {
+            "mean": float(scores.mean()),
+            "stderr": float(scores.std(ddof=1) / np.sqrt(len(scores))) if len(scores) > 1 else 0.0,
+        }
     if isinstance(env, CollaborativeBanditEnv):
         out["exact"] = bandit_exact_return(ego, env, partner)
     return out

@@ -139,7 +139,11 @@ class LeanEnvRunner(MultiAgentEnvRunner):
             log(EPISODE_RETURN_MIN, min(episode["ret"]), reduce="min", window=1)
             log(EPISODE_LEN_MAX, max(episode["len"]), reduce="max", window=1)
             log(EPISODE_RETURN_MAX, max(episode["ret"]), reduce="max", window=1)
-            for key, table in ((EPISODE_AGENT_RETURN_MEAN, lean["agents"]), (EPISODE_AGENT_STEPS, lean["agent_len"]), (EPISODE_MODULE_RETURN_MEAN, lean["modules"])):
+            for key, table in (
+                (EPISODE_AGENT_RETURN_MEAN, lean["agents"]),
+                (EPISODE_AGENT_STEPS, lean["agent_len"]),
+                (EPISODE_MODULE_RETURN_MEAN, lean["modules"]),
+            ):
                 for name, values in table.items():
                     log((key, name), mean(values), window=1)
 

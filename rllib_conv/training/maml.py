@@ -28,7 +28,9 @@ def outer_update(theta: Weights, adapted: Weights, step: float) -> Weights:
 class MetaTrainer:
     """Runs MAML outer steps on an RLlib algorithm built for the `maml` method."""
 
-    def __init__(self, algo: Any, partners: list[str], inner_iterations: int, outer_step: float, modules: tuple[str, ...] = META_MODULES) -> None:
+    def __init__(
+        self, algo: Any, partners: list[str], inner_iterations: int, outer_step: float, modules: tuple[str, ...] = META_MODULES
+    ) -> None:
         self.algo, self.partners, self.modules = algo, partners, modules
         self.inner_iterations, self.outer_step = inner_iterations, outer_step
         self.outer_steps = 0
@@ -46,7 +48,9 @@ class MetaTrainer:
         for _ in range(self.inner_iterations):
             result = self.algo.train()
         step = self.outer_step
-        self.algo.learner_group.foreach_learner(lambda learner: load_weights(learner.module, outer_update(theta, snapshot(learner.module, modules), step)))
+        self.algo.learner_group.foreach_learner(
+            lambda learner: load_weights(learner.module, outer_update(theta, snapshot(learner.module, modules), step))
+        )
         push_learner_weights(self.algo)
         self._focus(None)
         self.outer_steps += 1

@@ -23,7 +23,9 @@ from rllib_conv.training.tuning import init_ray
 T = TypeVar("T")
 
 
-def packs(units: list[T], key: Callable[[T], Hashable], cpus: int, max_pack: int, stage_units: int | None = None) -> list[list[T]]:
+def packs(
+    units: list[T], key: Callable[[T], Hashable], cpus: int, max_pack: int, stage_units: int | None = None
+) -> list[list[T]]:
     """`units` split into packs of equal `key`, each of at most `max_pack` and about `stage_units / cpus` units.
 
     `stage_units` (default `len(units)`) counts the units of the whole stage these are part
@@ -41,7 +43,9 @@ def packs(units: list[T], key: Callable[[T], Hashable], cpus: int, max_pack: int
     return out
 
 
-def spread_over_cores(jobs: list[dict[str, Any]], units_key: str, cpus: int, first_key: str | None = None) -> list[dict[str, Any]]:
+def spread_over_cores(
+    jobs: list[dict[str, Any]], units_key: str, cpus: int, first_key: str | None = None
+) -> list[dict[str, Any]]:
     """`jobs` (trials, each running the list of equal-cost units under `units_key` together), cut and ordered so they keep `cpus` cores busy.
 
     Five jobs of 3 seeds on 2 cores run 2, 2, then 1 trial with a core idle: 9 unit-lengths
@@ -81,4 +85,3 @@ def cluster_cpus(address: str | None = None) -> int:
     """The CPUs of the Ray cluster at `address` (started locally without one)."""
     init_ray(address)
     return int(ray.cluster_resources().get("CPU", os.cpu_count() or 1))
-

@@ -32,7 +32,9 @@ EXPORT_CHECKPOINT = f"{CHECKPOINT_PREFIX}000000"
 
 def replica_module(module: Any, index: int, replica: Replica) -> ConventionMultiRLModule:
     """A `ConventionMultiRLModule` under plain IDs holding the current weights of replica `index` of `module` (a stacked ego)."""
-    plain = MultiRLModuleSpec(multi_rl_module_class=ConventionMultiRLModule, rl_module_specs=module_specs(replica.setup, seed=replica.own_seed)).build()
+    plain = MultiRLModuleSpec(
+        multi_rl_module_class=ConventionMultiRLModule, rl_module_specs=module_specs(replica.setup, seed=replica.own_seed)
+    ).build()
     return copy_replica(module, index, replica, plain)
 
 
@@ -46,7 +48,9 @@ def copy_replica(module: Any, index: int, replica: Replica, plain: ConventionMul
     return plain
 
 
-def export_replica(plain: ConventionMultiRLModule, replica: Replica, folder: Path, evaluation: dict[str, Any], progress: list[dict[str, Any]]) -> Path:
+def export_replica(
+    plain: ConventionMultiRLModule, replica: Replica, folder: Path, evaluation: dict[str, Any], progress: list[dict[str, Any]]
+) -> Path:
     """Write a replica (`plain`: its modules from `replica_module`) as a trained-ego trial folder at `folder`; return it.
 
     An existing complete export (a resumed trial re-running its last iteration) is left as

@@ -81,7 +81,9 @@ def restore(algo: Any, state: dict[str, Any]) -> None:
             if group.local_env_runner is not None:
                 _set_runner_state(group.local_env_runner, runner_state)
         else:
-            group.foreach_env_runner(lambda r, s=runner_state: _set_runner_state(r, s), remote_worker_ids=[index], local_env_runner=False)
+            group.foreach_env_runner(
+                lambda r, s=runner_state: _set_runner_state(r, s), remote_worker_ids=[index], local_env_runner=False
+            )
     for saved in state.get("learners", [])[:1]:
         algo.learner_group.foreach_learner(lambda learner, s=saved: _set_permuter_state(learner, s))
     _set_process_state(state["trainer"])

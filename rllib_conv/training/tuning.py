@@ -55,7 +55,9 @@ def logger_callbacks(loggers: Sequence[str], folder: Path, name: str) -> list[Ca
                 os.environ.setdefault("MLFLOW_ALLOW_FILE_STORE", "true")
                 callbacks.append(_mlflow_logger((folder / "mlruns").resolve().as_uri(), name))
         except ImportError as exc:
-            raise ValueError(f"--log {kind}: the {kind} package is not installed (pip install 'rllib-conv[tracking]'): {exc}") from None
+            raise ValueError(
+                f"--log {kind}: the {kind} package is not installed (pip install 'rllib-conv[tracking]'): {exc}"
+            ) from None
     return callbacks
 
 
@@ -142,7 +144,9 @@ def check_spec(folder: Path, spec: dict[str, Any], grows: str | None = None) -> 
         stored = yaml.safe_load(path.read_text())
         if stored == spec:
             return
-        same = grows is not None and {k: v for k, v in stored.items() if k != grows} == {k: v for k, v in spec.items() if k != grows}
+        same = grows is not None and {k: v for k, v in stored.items() if k != grows} == {
+            k: v for k, v in spec.items() if k != grows
+        }
         if not same:
             raise ValueError(
                 f"{str(folder)!r} already holds a different experiment (see its {SPEC_FILE}); "
@@ -191,10 +195,17 @@ def fit(
         raise ValueError(f"nothing to resume: {str(path)!r} holds no Tune experiment (run without --resume to start it)")
     check_spec(path, spec)
     init_ray(address)
-    callbacks = [TrimRerunResults(), KeepLogsAtCheckpoints(), progress if isinstance(progress, Callback) else PROGRESS[progress](), *logger_callbacks(loggers, path, name)]
+    callbacks = [
+        TrimRerunResults(),
+        KeepLogsAtCheckpoints(),
+        progress if isinstance(progress, Callback) else PROGRESS[progress](),
+        *logger_callbacks(loggers, path, name),
+    ]
     if restorable:
         restore_checkpointed_logs(path)
-        tuner = tune.Tuner.restore(str(path), trainable=trainable, param_space=param_space, resume_unfinished=True, resume_errored=True)
+        tuner = tune.Tuner.restore(
+            str(path), trainable=trainable, param_space=param_space, resume_unfinished=True, resume_errored=True
+        )
         # tuner.pkl holds the first run's callbacks; this run's progress choice (and fixes) win.
         tuner._local_tuner.get_run_config().callbacks = callbacks
     else:
@@ -217,5 +228,7 @@ def fit(
     # Tune marks interrupted trials TERMINATED too; a finished one's last result says `done` (every trainable here sets it).
     unfinished = sum(r.error is None and not (r.metrics or {}).get("done") for r in results)
     if unfinished:
-        raise StageInterrupted(f"{unfinished} of {len(results)} trials of {str(path)!r} stopped before they finished; run the same command again to continue them")
+        raise StageInterrupted(
+            f"{unfinished} of {len(results)} trials of {str(path)!r} stopped before they finished; run the same command again to continue them"
+        )
     return results

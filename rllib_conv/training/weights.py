@@ -36,5 +36,7 @@ def learner_module(algo: Any) -> Any:
     """The learner's MultiRLModule of an algorithm with a local learner (every module, value towers included)."""
     learner = getattr(algo.learner_group, "_learner", None)
     if learner is None:
-        raise RuntimeError("the algorithm has remote learners; its module is reachable through learner_group.foreach_learner only")
+        raise RuntimeError(
+            "the algorithm has remote learners; its module is reachable through learner_group.foreach_learner only"
+        )
     return learner.module

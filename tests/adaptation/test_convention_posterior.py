@@ -129,7 +129,9 @@ def test_the_player_answers_by_situation_and_falls_back_where_no_convention_fits
     probs = PosteriorPlayer("ego", post, [LOW, HIGH], adapting).action_probs(ONE_HOT, ALL_ARMS)
     assert probs[0, 6] > 0.95  # the adapting head's answer
     # Unseen contexts are the adapting head's (under recombination) or the whole conventions' (prior mixture).
-    fresh = PosteriorPlayer("ego", ConventionPosterior([LOW, HIGH], bandit_context), [LOW, HIGH], adapting).action_probs(ONE_HOT, ALL_ARMS)
+    fresh = PosteriorPlayer("ego", ConventionPosterior([LOW, HIGH], bandit_context), [LOW, HIGH], adapting).action_probs(
+        ONE_HOT, ALL_ARMS
+    )
     assert fresh[0, [0, 4, 6]] == pytest.approx([0.25, 0.25, 0.5])
 
 
@@ -172,7 +174,14 @@ def test_adapting_to_a_training_convention_plays_its_head_after_one_update(bandi
     # The new partner is a training partner: its moves in one update of 16 steps identify its convention
     # (whole or context by context), and the ego plays it at once; the fresh head would still play the marginals.
     trial = Path(bandit_egos["bandit-s2-hand"].path)
-    raw = {"name": "p", "runs": [str(trial)], "split": "train", "partners": ["hand-train-2"], "head_init": "posterior", "steps": 64}
+    raw = {
+        "name": "p",
+        "runs": [str(trial)],
+        "split": "train",
+        "partners": ["hand-train-2"],
+        "head_init": "posterior",
+        "steps": 64,
+    }
     curves = run_adaptation(raw, out=tmp_path, storage=tmp_path / "runs")
     assert curves["steps"].tolist() == [0, 16, 32, 48, 64]
     assert abs(curves["exact_return"].iloc[0] - 0.75) < 0.05  # the prior: half the symmetric contexts right
@@ -192,7 +201,9 @@ def narrow_ego(ray_session, tmp_path_factory) -> tuple[str, Path]:
     """An ego trained with two partners that both pull arm 0 in context 0; its test partner pulls arm 4 there (novel)."""
     folder = tmp_path_factory.mktemp("narrow")
     pop = from_partners(
-        "narrow", "bandit", {"symmetric": 2},
+        "narrow",
+        "bandit",
+        {"symmetric": 2},
         train=[BanditConventionPartner("a", [0, 1, 2, 3]), BanditConventionPartner("b", [0, 5, 2, 3])],
         test=[BanditConventionPartner("novel", [4, 1, 2, 3])],
     )
@@ -222,7 +233,13 @@ def test_a_partner_following_no_known_convention_falls_back_to_fine_tuning(narro
 def blocks_ego(ray_session, tmp_path_factory) -> str:
     """A modular blocks ego (P1) trained briefly with the 3 training permutations: it knows the rules a little, the conventions hardly."""
     folder = tmp_path_factory.mktemp("blocks")
-    overrides = ["name=blocks", "population=blocks-perm", "run.timesteps=4000", "ppo.rollout_per_partner=400", "ppo.minibatch_size=100"]
+    overrides = [
+        "name=blocks",
+        "population=blocks-perm",
+        "run.timesteps=4000",
+        "ppo.rollout_per_partner=400",
+        "ppo.minibatch_size=100",
+    ]
     results = run(experiment.load("tune_configs/bandit_modular.yaml", overrides), storage=folder / "runs")
     assert not results.errors
     return str(trial_folders(results[0].path)[0])

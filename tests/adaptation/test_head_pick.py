@@ -56,13 +56,23 @@ def test_pick_plays_whole_rounds_within_the_budget_and_takes_the_best() -> None:
     assert tiny.steps == 3  # the first round is played even when it overruns the budget
 
     same = {"first": BanditConventionPartner("first", PARTNER_ARMS), "second": BanditConventionPartner("second", PARTNER_ARMS)}
-    assert pick_head(make_env, same, make_partner, "player_0", "player_1", budget=20, seed=0).chosen == "first"  # ties: the earlier
+    assert (
+        pick_head(make_env, same, make_partner, "player_0", "player_1", budget=20, seed=0).chosen == "first"
+    )  # ties: the earlier
 
 
 def test_pick_compares_candidates_on_the_same_blocks_goals() -> None:
     perms = [list(p) for p in derangements()]
     players = {f"leader{i}": BlocksLeader(f"leader{i}", p) for i, p in enumerate(perms[:4])}
-    pick = pick_head(lambda: envs.make("blocks"), players, lambda: PermutationPartner("p", perms[2]), "player_0", "player_1", budget=640, seed=0)
+    pick = pick_head(
+        lambda: envs.make("blocks"),
+        players,
+        lambda: PermutationPartner("p", perms[2]),
+        "player_0",
+        "player_1",
+        budget=640,
+        seed=0,
+    )
     assert pick.chosen == "leader2" and pick.returns["leader2"] == 20.0
     assert pick.steps == 624  # 26 rounds of 4 six-move episodes; a 27th would need 648
 
@@ -86,7 +96,15 @@ def test_pick_is_refused_without_per_partner_heads(bandit_egos, tmp_path) -> Non
 def test_adapting_to_a_known_convention_picks_its_head(bandit_egos, tmp_path) -> None:
     # A training partner's convention: its own head scores 1 at once; the fresh head plays the marginals (3/4).
     trial = Path(bandit_egos["bandit-s2-hand"].path)
-    raw = {"name": "p", "runs": [str(trial)], "split": "train", "partners": ["hand-train-2"], "head_init": "pick", "pick_steps": 64, "steps": 96}
+    raw = {
+        "name": "p",
+        "runs": [str(trial)],
+        "split": "train",
+        "partners": ["hand-train-2"],
+        "head_init": "pick",
+        "pick_steps": 64,
+        "steps": 96,
+    }
     curves = run_adaptation(raw, out=tmp_path, storage=tmp_path / "runs")
     assert curves["steps"].tolist() == [0, 64, 80, 96]  # picking is charged as env steps
     assert abs(curves["exact_return"].iloc[0] - 0.75) < 0.05

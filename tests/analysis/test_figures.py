@@ -39,7 +39,19 @@ def curves() -> pd.DataFrame:
             for seed in (0, 1):
                 for steps in (0, 16, 32):
                     r = base + steps / 100 + seed / 50
-                    rows.append({"game": "bandit", "population": population, "label": label, "run": f"r{seed}", "seed": seed, "partner": "p0", "steps": steps, "mean_return": r, "exact_return": r})
+                    rows.append(
+                        {
+                            "game": "bandit",
+                            "population": population,
+                            "label": label,
+                            "run": f"r{seed}",
+                            "seed": seed,
+                            "partner": "p0",
+                            "steps": steps,
+                            "mean_return": r,
+                            "exact_return": r,
+                        }
+                    )
     return pd.DataFrame(rows)
 
 
@@ -69,7 +81,16 @@ def test_every_method_has_its_own_colour_and_line_style() -> None:
 def test_the_legend_stays_inside_the_figure_width() -> None:
     # One narrow panel and all twelve methods, some with long names: the legend takes fewer columns until it fits.
     rows = [
-        {"game": "bandit", "population": "bandit-s2-hand", "label": label, "run": "r", "seed": 0, "partner": "p", "steps": step, "mean_return": 0.5}
+        {
+            "game": "bandit",
+            "population": "bandit-s2-hand",
+            "label": label,
+            "run": "r",
+            "seed": 0,
+            "partner": "p",
+            "steps": step,
+            "mean_return": 0.5,
+        }
         for label in figures.LABEL_ORDER
         for step in (0, 16)
     ]
@@ -82,7 +103,10 @@ def test_the_legend_stays_inside_the_figure_width() -> None:
 
 def test_band_caption_names_the_interval_and_its_n() -> None:
     df = pd.DataFrame({"population": "p", "label": ["a"] * 3 + ["b"] * 2, "seed": [0, 1, 2, 0, 1]})
-    assert figures.band_caption(df) == "Bands: 95% t-interval over seeds (each seed averaged over its test partners first), n = 2–3 seeds per method."
+    assert (
+        figures.band_caption(df)
+        == "Bands: 95% t-interval over seeds (each seed averaged over its test partners first), n = 2–3 seeds per method."
+    )
     one = figures.band_caption(df[df["seed"] == 0], "Error bars", averaged=None)
     assert one == "Error bars: 95% t-interval over seeds, n = 1 seed per method; no band where n = 1."
 
@@ -90,7 +114,14 @@ def test_band_caption_names_the_interval_and_its_n() -> None:
 def test_training_curves(tmp_path: Path) -> None:
     df = pd.DataFrame(
         [
-            {"population": "bandit-s2-hand", "label": label, "seed": s, "training_iteration": i, "steps": 256 * i, "return_mean": 0.1 * i + 0.01 * s}
+            {
+                "population": "bandit-s2-hand",
+                "label": label,
+                "seed": s,
+                "training_iteration": i,
+                "steps": 256 * i,
+                "return_mean": 0.1 * i + 0.01 * s,
+            }
             for label in ("modular-lam0.5", "agg", "oracle")
             for s in (0, 1, 2)
             for i in (1, 2, 3)
@@ -106,7 +137,10 @@ def test_marginal_bars(tmp_path: Path) -> None:
     df = pd.DataFrame(
         [
             {"population": pop, "label": label, "seed": s, "distance": d + 0.01 * s}
-            for pop, methods in (("bandit-s2-hand", ("modular-lam0", "modular-lam0.5", "agg")), ("blocks-perm", ("modular-lam0.5", "agg")))
+            for pop, methods in (
+                ("bandit-s2-hand", ("modular-lam0", "modular-lam0.5", "agg")),
+                ("blocks-perm", ("modular-lam0.5", "agg")),
+            )
             for label, d in zip(methods, (0.5, 0.05, 1.0) if len(methods) == 3 else (0.05, 1.0))
             for s in (0, 1)
         ]
@@ -126,12 +160,22 @@ def test_marginal_bars(tmp_path: Path) -> None:
 def test_zeroshot_bars(tmp_path: Path) -> None:
     df = pd.DataFrame(
         [
-            {"game": "bandit", "population": "bandit-s1-hand", "label": label, "seed": 0, "partner": f"p{k}", "mean_return": v, "exact_return": v + 0.01}
+            {
+                "game": "bandit",
+                "population": "bandit-s1-hand",
+                "label": label,
+                "seed": 0,
+                "partner": f"p{k}",
+                "mean_return": v,
+                "exact_return": v + 0.01,
+            }
             for label, v in (("modular-lam0.5", 0.9), ("no_task_logits", 0.3))
             for k in range(4)
         ]
     )
-    fig = figures.zeroshot_bars(df, paper={("bandit-s1-hand", "modular-lam0.5"): 0.99, ("bandit-s1-hand", "no_task_logits"): 0.30})
+    fig = figures.zeroshot_bars(
+        df, paper={("bandit-s1-hand", "modular-lam0.5"): 0.99, ("bandit-s1-hand", "no_task_logits"): 0.30}
+    )
     ax = fig.axes[0]
     assert len(bars(ax)) == 2 and crosses(ax) == 2
     assert sorted(round(b.get_height(), 3) for b in bars(ax)) == [0.31, 0.91]  # exact returns are plotted
@@ -149,7 +193,13 @@ def test_crossplay_heatmap(tmp_path: Path) -> None:
 
 def test_selfplay_heatmap(tmp_path: Path) -> None:
     df = pd.DataFrame(
-        {"population": ["p"] * 3, "partner": ["sp00", "sp01", "sp02"], "split": ["train", "train", "test"], "score": [1.0, 0.4, 1.0], "passed": [True, False, True]}
+        {
+            "population": ["p"] * 3,
+            "partner": ["sp00", "sp01", "sp02"],
+            "split": ["train", "train", "test"],
+            "score": [1.0, 0.4, 1.0],
+            "passed": [True, False, True],
+        }
     )
     fig = figures.selfplay_heatmap(df)
     ax = fig.axes[0]
@@ -160,7 +210,11 @@ def test_selfplay_heatmap(tmp_path: Path) -> None:
 
 def test_user_study_bars(tmp_path: Path) -> None:
     scores = pd.DataFrame(
-        [{"task": t, "context": c, "score": 0.5, "sem": 0.1, "n": 23, "coordinated": 11} for t in ("train", "test") for c in "ABC"]
+        [
+            {"task": t, "context": c, "score": 0.5, "sem": 0.1, "n": 23, "coordinated": 11}
+            for t in ("train", "test")
+            for c in "ABC"
+        ]
     )
     fig = figures.user_study_bars(scores, paper={(t, c): 0.6 for t in ("train", "test") for c in "ABC"})
     ax = fig.axes[0]

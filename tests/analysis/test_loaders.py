@@ -56,8 +56,13 @@ def test_stage_times_missing_marker(copy: Path) -> None:
 def test_stage_done_only_when_its_marker_covers_the_plan(copy: Path) -> None:
     # A 5-seed plan over a folder whose zero-shot marker a stopped 5-seed run left at the 3-seed items.
     game = copy / "bandit"
-    plan = {"game": "bandit", "seeds": [0, 1, 2, 3, 4], "quick": False, "stages": ["train", "zeroshot"],
-            "items": {"train": ["a seeds=0,1,2,3,4"], "zeroshot": ["z seeds=0,1,2,3,4"]}}
+    plan = {
+        "game": "bandit",
+        "seeds": [0, 1, 2, 3, 4],
+        "quick": False,
+        "stages": ["train", "zeroshot"],
+        "items": {"train": ["a seeds=0,1,2,3,4"], "zeroshot": ["z seeds=0,1,2,3,4"]},
+    }
     (game / "plan.json").write_text(json.dumps(plan))
     (game / "train.done").write_text("10.0 s\na seeds=0,1,2\na seeds=0,1,2,3,4\n")
     (game / "zeroshot.done").write_text("7.5 s\nz seeds=0,1,2\n")
@@ -74,12 +79,24 @@ def test_training_one_row_per_trial_and_iteration() -> None:
     # 4 trained-ego trials x 8 iterations; runs/adapt-* (Tune internals) is ignored.
     assert len(tr) == 32
     assert tr["run"].nunique() == 4
-    assert set(tr["experiment"]) == {"bandit-s1-hand__modular-lam0.5", "bandit-s1-hand__no_task_logits", "bandit-s2-hand__agg", S2_MODULAR}
+    assert set(tr["experiment"]) == {
+        "bandit-s1-hand__modular-lam0.5",
+        "bandit-s1-hand__no_task_logits",
+        "bandit-s2-hand__agg",
+        S2_MODULAR,
+    }
     s2 = tr[tr["experiment"] == S2_MODULAR].sort_values("training_iteration")
     assert s2["training_iteration"].tolist() == list(range(1, 9))
     assert s2["steps"].tolist() == [256 * i for i in range(1, 9)]  # the env_steps column
     first = s2.iloc[0]
-    assert (first["game"], first["population"], first["label"], first["method"], first["lam"], first["seed"]) == ("bandit", "bandit-s2-hand", "modular-lam0.5", "modular", 0.5, 0)
+    assert (first["game"], first["population"], first["label"], first["method"], first["lam"], first["seed"]) == (
+        "bandit",
+        "bandit-s2-hand",
+        "modular-lam0.5",
+        "modular",
+        0.5,
+        0,
+    )
     assert first["z_dim"] == 30  # z_dim null in config.yaml: z is the last hidden layer (hidden 30)
     assert s2["return_mean"].iloc[-1] == pytest.approx(0.703125)  # progress.csv, last line
     assert "return/hand-train-3" in tr.columns and "marginal_reg" in tr.columns

@@ -14,7 +14,15 @@ from analysis.plots import plot_folder, sweep_table, swept_keys
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
 
-def write_trial(experiment: Path, name: str, population: str, lam: float, seed: int, finals: tuple[float, float], distance: float | None = None) -> Path:
+def write_trial(
+    experiment: Path,
+    name: str,
+    population: str,
+    lam: float,
+    seed: int,
+    finals: tuple[float, float],
+    distance: float | None = None,
+) -> Path:
     """A trained ego of Tune trial `name`, `<trial>/seed=<seed>/` as training exports it: config.yaml, three
     iterations of progress.csv with two partners, and eval.json."""
     trial = experiment / name / f"seed={seed}"
@@ -48,7 +56,9 @@ def sweep(tmp_path: Path) -> Path:
     }
     for i, ((population, lam), per_seed) in enumerate(finals.items()):
         for seed, pair in enumerate(per_seed):
-            write_trial(experiment, f"EgoTrainable_{i}", population, lam, seed, pair, distance=0.1 * (i + 1) + 0.02 * seed)  # seeds: one trial's replicas
+            write_trial(
+                experiment, f"EgoTrainable_{i}", population, lam, seed, pair, distance=0.1 * (i + 1) + 0.02 * seed
+            )  # seeds: one trial's replicas
     (experiment / "experiment.yaml").write_text("name: my-sweep\n")
     return experiment
 
@@ -70,14 +80,23 @@ def test_the_heat_map_holds_the_mean_over_seeds_of_each_final_value(sweep: Path)
     # eval.json's distance: trial i has 0.1 * (i + 1) + 0.02 * seed -> 0.11, 0.21, 0.31, 0.41.
     distance = sweep_table(summaries, "eval/marginal_distance/paper")
     assert distance.to_numpy().ravel().tolist() == pytest.approx([0.11, 0.21, 0.31, 0.41])
-    assert sweep_table(summaries[summaries["config/population"] == "bandit-s2-hand"], "return_mean").columns.tolist() == ["return_mean"]
+    assert sweep_table(summaries[summaries["config/population"] == "bandit-s2-hand"], "return_mean").columns.tolist() == [
+        "return_mean"
+    ]
     # A third swept key (the learning rate, 0.001 on seed 0 and 0.0003 on seed 1): columns name each combination.
     three = summaries.assign(**{"config/ppo.lr": [0.001 if i % 2 == 0 else 0.0003 for i in range(len(summaries))]})
     assert swept_keys(three) == ["population", "lam", "ppo.lr"]
     table = sweep_table(three, "return_mean")
-    assert table.columns.tolist() == ["lam=0.0, ppo.lr=0.0003", "lam=0.0, ppo.lr=0.001", "lam=0.5, ppo.lr=0.0003", "lam=0.5, ppo.lr=0.001"]
+    assert table.columns.tolist() == [
+        "lam=0.0, ppo.lr=0.0003",
+        "lam=0.0, ppo.lr=0.001",
+        "lam=0.5, ppo.lr=0.0003",
+        "lam=0.5, ppo.lr=0.001",
+    ]
     assert table.loc["bandit-s3-hand"].tolist() == pytest.approx([0.3, 0.2, 0.6, 0.8])
-    assert sweep_table(summaries[(summaries["config/population"] == "bandit-s2-hand") & (summaries["config/lam"] == 0.5)], "return_mean").empty
+    assert sweep_table(
+        summaries[(summaries["config/population"] == "bandit-s2-hand") & (summaries["config/lam"] == 0.5)], "return_mean"
+    ).empty
 
 
 def test_a_training_run_over_seeds_gets_learning_curves_only(tmp_path: Path) -> None:
@@ -105,19 +124,33 @@ def write_csvs(folder: Path) -> None:
     folder.mkdir(parents=True)
     rows = ["run,method,lam,z_dim,seed,partner,steps,mean_return,stderr,exact_return"]
     for method, lam, base in (("modular", 0.5, 0.6), ("agg", 0.0, 0.4)):
-        rows += [f"runs/e/T{s},{method},{lam},30,{s},p0,{step},{base + step / 100 + s / 50},0.01," for s in (0, 1) for step in (0, 16, 32)]
+        rows += [
+            f"runs/e/T{s},{method},{lam},30,{s},p0,{step},{base + step / 100 + s / 50},0.01,"
+            for s in (0, 1)
+            for step in (0, 16, 32)
+        ]
     (folder / "my-adapt.csv").write_text("\n".join(rows) + "\n")
     rows = ["run,method,lam,seed,partner,mean_return,stderr,exact_return"]
-    rows += [f"runs/e/T{s},{method},{lam},{s},p{k},{v + 0.1 * k},0.01,{v + 0.1 * k}" for method, lam, v in (("modular", 0.5, 0.8), ("no_task_logits", 0.0, 0.3)) for s in (0, 1) for k in (0, 1)]
+    rows += [
+        f"runs/e/T{s},{method},{lam},{s},p{k},{v + 0.1 * k},0.01,{v + 0.1 * k}"
+        for method, lam, v in (("modular", 0.5, 0.8), ("no_task_logits", 0.0, 0.3))
+        for s in (0, 1)
+        for k in (0, 1)
+    ]
     (folder / "my-zeroshot.csv").write_text("\n".join(rows) + "\n")
     (folder / "notes.csv").write_text("a,b\n1,2\n")
-    (folder / "failed.csv").write_text("run,method,lam,seed,partner,mean_return,stderr,exact_return\n")  # a stage that wrote no row
+    (folder / "failed.csv").write_text(
+        "run,method,lam,seed,partner,mean_return,stderr,exact_return\n"
+    )  # a stage that wrote no row
 
 
 def test_adaptation_and_zeroshot_csvs_get_a_png_each(tmp_path: Path) -> None:
     write_csvs(tmp_path / "out")
     written = plot_folder(tmp_path / "out")
-    assert written == [tmp_path / "out" / "my-adapt.png", tmp_path / "out" / "my-zeroshot.png"]  # notes.csv, failed.csv: nothing to draw
+    assert written == [
+        tmp_path / "out" / "my-adapt.png",
+        tmp_path / "out" / "my-zeroshot.png",
+    ]  # notes.csv, failed.csv: nothing to draw
     for png in written:
         check_png(png)
     assert plot_folder(tmp_path / "out" / "my-adapt.csv") == [tmp_path / "out" / "my-adapt.png"]

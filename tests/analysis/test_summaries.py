@@ -137,9 +137,9 @@ def test_curve_band_is_seed_level() -> None:
 def test_curve_band_matches_points_by_order_not_step_count() -> None:
     # Two Hanabi-like curves of one seed whose evaluations land a few steps apart: 3 points each.
     base = {"game": "hanabi", "population": "p", "label": "m", "run": "r", "seed": 0}
-    rows_ = [
-        {**base, "partner": "a", "steps": s, "mean_return": v} for s, v in [(0, 1.0), (640, 2.0), (1281, 3.0)]
-    ] + [{**base, "partner": "b", "steps": s, "mean_return": v} for s, v in [(0, 3.0), (642, 4.0), (1287, 5.0)]]
+    rows_ = [{**base, "partner": "a", "steps": s, "mean_return": v} for s, v in [(0, 1.0), (640, 2.0), (1281, 3.0)]] + [
+        {**base, "partner": "b", "steps": s, "mean_return": v} for s, v in [(0, 3.0), (642, 4.0), (1287, 5.0)]
+    ]
     band = curve_band(pd.DataFrame(rows_))
     assert band["steps"].tolist() == [0, 641, 1284]
     assert band["mean"].tolist() == [2.0, 3.0, 4.0] and band["n"].tolist() == [1, 1, 1]  # one seed: no band
@@ -150,7 +150,11 @@ def test_first_try_difference_pairs_people() -> None:
     # Three pairs; first try in A: 1, 1, 0; in B: 0, 1, 0 -> differences 1, 0, 0: mean 1/3, sd 0.5774,
     # half-width 4.3027 * 0.5774 / sqrt(3) = 1.4342. The fifth try is ignored.
     study = pd.DataFrame(
-        [{"pair_id": p, "task": "test", "context": c, "try": 1, "coordinated": v} for c, vs in (("A", (1, 1, 0)), ("B", (0, 1, 0))) for p, v in zip("xyz", vs)]
+        [
+            {"pair_id": p, "task": "test", "context": c, "try": 1, "coordinated": v}
+            for c, vs in (("A", (1, 1, 0)), ("B", (0, 1, 0)))
+            for p, v in zip("xyz", vs)
+        ]
         + [{"pair_id": "x", "task": "test", "context": "B", "try": 5, "coordinated": 1}]
     )
     mean, lo, hi, n = first_try_difference(study, ("test", "A"), ("test", "B"))

@@ -24,7 +24,14 @@ HAND_COUNTS = {("train", "A"): 22, ("train", "B"): 9, ("train", "C"): 13, ("test
 
 # Without pair 10 (22 pairs): Train-A 22, Train-B 9, Train-C 13, Test-A 21, Test-B 11, Test-C 21
 # (pair 10 scored only on Test-C). The paper's figure then shows Train-A and Test-A exchanged.
-FIGURE_COUNTS = {("train", "A"): 21, ("train", "B"): 9, ("train", "C"): 13, ("test", "A"): 22, ("test", "B"): 11, ("test", "C"): 21}
+FIGURE_COUNTS = {
+    ("train", "A"): 21,
+    ("train", "B"): 9,
+    ("train", "C"): 13,
+    ("test", "A"): 22,
+    ("test", "B"): 11,
+    ("test", "C"): 21,
+}
 
 
 @pytest.fixture(scope="module")
@@ -59,7 +66,14 @@ def test_paper_figure_recipe_gives_the_figure(study) -> None:
         assert fig.loc[key, "score"] == pytest.approx(p)
         assert fig.loc[key, "sem"] == pytest.approx(math.sqrt(p * (1 - p) / 22))  # np.std (ddof=0) / sqrt(22)
     # ... and these are the paper's printed bars (pgfplots values, rounded as printed).
-    printed = {("train", "A"): (0.9545, 0.044), ("test", "A"): (1.0, 0.0), ("train", "B"): (0.4091, 0.10), ("test", "B"): (0.50, 0.11), ("train", "C"): (0.5909, 0.10), ("test", "C"): (0.9545, 0.044)}
+    printed = {
+        ("train", "A"): (0.9545, 0.044),
+        ("test", "A"): (1.0, 0.0),
+        ("train", "B"): (0.4091, 0.10),
+        ("test", "B"): (0.50, 0.11),
+        ("train", "C"): (0.5909, 0.10),
+        ("test", "C"): (0.9545, 0.044),
+    }
     for key, (value, error) in printed.items():
         assert fig.loc[key, "score"] == pytest.approx(value, abs=5e-5)
         assert fig.loc[key, "sem"] == pytest.approx(error, abs=5e-3)

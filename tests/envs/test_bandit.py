@@ -14,9 +14,11 @@ from rllib_conv.envs.bandit import (
     user_study_prizes,
 )
 
-CONFIGS = [
-    {"symmetric": m, "new_task": new} for m in range(5) for new in (False, True)
-] + [{"task": "user_study"}, {"task": "user_study", "new_task": True}, {"prizes": [[1, 0, 2], [0, 3, 3]]}]
+CONFIGS = [{"symmetric": m, "new_task": new} for m in range(5) for new in (False, True)] + [
+    {"task": "user_study"},
+    {"task": "user_study", "new_task": True},
+    {"prizes": [[1, 0, 2], [0, 3, 3]]},
+]
 
 
 def reset_to_context(env, context: int) -> dict:

@@ -126,7 +126,9 @@ def test_actions_outside_the_space_raise(bad) -> None:
 def test_bad_config() -> None:
     with pytest.raises(ValueError, match="new_task must be a bool"):
         envs.make("blocks", new_task=1)
-    with pytest.raises(ValueError, match=r"env 'blocks' got unknown config key\(s\) \['symmetric'\]; accepted: new_task, render_mode"):
+    with pytest.raises(
+        ValueError, match=r"env 'blocks' got unknown config key\(s\) \['symmetric'\]; accepted: new_task, render_mode"
+    ):
         envs.make("blocks", symmetric=2)
     with pytest.raises(ValueError, match="unknown env 'chess'; registered envs: bandit, blocks, hanabi"):
         envs.make("chess")

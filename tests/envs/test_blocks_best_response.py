@@ -35,7 +35,12 @@ def test_the_plan_against_a_known_permutation_scores_20_on_every_goal(perm) -> N
     partner = PermutationPartner("p", list(perm))
     plan = PLANNER.plan(table(partner))
     assert plan.value == pytest.approx([20.0] * len(GOALS))
-    scores = [s for s, _ in itertools.islice(episode_stream(envs.make("blocks"), {"player_0": _Planned(plan), "player_1": partner}, seed=0), 60)]
+    scores = [
+        s
+        for s, _ in itertools.islice(
+            episode_stream(envs.make("blocks"), {"player_0": _Planned(plan), "player_1": partner}, seed=0), 60
+        )
+    ]
     assert scores == [20.0] * 60
 
 
@@ -51,7 +56,12 @@ def test_the_new_task_plan_keeps_red_off_both_goal_cells() -> None:
     partner = PermutationPartner("p", list(TRAIN_PERMUTATIONS[1]))
     plan = planner.plan(table(partner, planner))
     assert plan.value == pytest.approx([20.0] * len(GOALS))
-    scores = [s for s, _ in itertools.islice(episode_stream(envs.make("blocks", new_task=True), {"player_0": _Planned(plan), "player_1": partner}, seed=1), 30)]
+    scores = [
+        s
+        for s, _ in itertools.islice(
+            episode_stream(envs.make("blocks", new_task=True), {"player_0": _Planned(plan), "player_1": partner}, seed=1), 30
+        )
+    ]
     assert scores == [20.0] * 30
 
 

@@ -346,9 +346,7 @@ def check_decoded_against_hle(env: HanabiEnv, player: int) -> None:
     assert decoded["life_tokens"] == hle_obs.life_tokens()
     assert decoded["deck_size"] == hle_obs.deck_size()
     discards = Counter((c.color(), c.rank()) for c in hle_obs.discard_pile())
-    assert decoded["discard_counts"] == [
-        [discards[(c, r)] for r in range(cfg["ranks"])] for c in range(cfg["colors"])
-    ]
+    assert decoded["discard_counts"] == [[discards[(c, r)] for r in range(cfg["ranks"])] for c in range(cfg["colors"])]
     for p, cards in enumerate(hle_obs.card_knowledge()):
         expected = [
             {

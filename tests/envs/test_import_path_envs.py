@@ -26,7 +26,13 @@ def test_a_population_of_an_import_path_game_trains_through_tune(ray_session, tm
     # The Tune trial runs in another process, where nothing was `register`ed: the name alone must do.
     pop = partners.get("bandit-s1-hand").model_copy(update={"name": "by-path", "env": PATH})
     pop.save(tmp_path / "pop.json")
-    raw = {"name": "path", "population": str(tmp_path / "pop.json"), "model": {"hidden": 8}, "ppo": {"rollout_per_partner": 16}, "run": {"timesteps": 128}}
+    raw = {
+        "name": "path",
+        "population": str(tmp_path / "pop.json"),
+        "model": {"hidden": 8},
+        "ppo": {"rollout_per_partner": 16},
+        "run": {"timesteps": 128},
+    }
     results = run(raw, storage=tmp_path / "runs")
     assert not results.errors
     evaluation = json.loads((tmp_path / "runs" / "path").glob("*/seed=0/eval.json").__next__().read_text())

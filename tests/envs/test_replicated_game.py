@@ -43,9 +43,14 @@ def test_a_copy_plays_the_games_its_replica_would_alone(game: str, config: dict)
                 np.testing.assert_array_equal(mine[split_agent(agent)[0]]["observations"], o["observations"])
             obs_p, rew_p, term_p, trunc_p, _ = packed.step(first_mover_actions(obs_p))
             obs_a, rew_a, term_a, trunc_a, _ = alone.step(first_mover_actions(obs_a))
-            assert {split_agent(a)[0]: r for a, r in rew_p.items() if split_agent(a)[1] == 1} == {split_agent(a)[0]: r for a, r in rew_a.items()}
+            assert {split_agent(a)[0]: r for a, r in rew_p.items() if split_agent(a)[1] == 1} == {
+                split_agent(a)[0]: r for a, r in rew_a.items()
+            }
             done = term_a["__all__"] or trunc_a["__all__"]
-            copy_done = all(term_p.get(f"{split_agent(a)[0]}#1", False) or trunc_p.get(f"{split_agent(a)[0]}#1", False) for a in alone.possible_agents)
+            copy_done = all(
+                term_p.get(f"{split_agent(a)[0]}#1", False) or trunc_p.get(f"{split_agent(a)[0]}#1", False)
+                for a in alone.possible_agents
+            )
             assert copy_done == done
 
 
@@ -66,7 +71,9 @@ def test_an_episode_ends_when_every_copy_has_ended() -> None:
     obs, _ = env.reset(seed=0)
     steps = 0
     while True:
-        assert {split_agent(a)[1] for a in obs} <= {0, 1} and len({split_agent(a)[1] for a in obs}) == len(obs)  # one mover per copy
+        assert {split_agent(a)[1] for a in obs} <= {0, 1} and len({split_agent(a)[1] for a in obs}) == len(
+            obs
+        )  # one mover per copy
         obs, _, terms, truncs, _ = env.step(first_mover_actions(obs))
         steps += 1
         if terms["__all__"] or truncs["__all__"]:

@@ -103,7 +103,13 @@ class _BoxParallel(ParallelEnv):
     def step(self, actions):
         self.agents = []
         r = float(actions["a"] == actions["b"])
-        return ({a: np.ones(3) for a in "ab"}, {a: r for a in "ab"}, {a: True for a in "ab"}, {a: False for a in "ab"}, {a: {} for a in "ab"})
+        return (
+            {a: np.ones(3) for a in "ab"},
+            {a: r for a in "ab"},
+            {a: True for a in "ab"},
+            {a: False for a in "ab"},
+            {a: {} for a in "ab"},
+        )
 
 
 class _DiscreteAEC(AECEnv):

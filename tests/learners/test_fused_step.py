@@ -20,7 +20,9 @@ def test_fused_step_equals_torch_adam_with_each_replica_clipped_alone(grad_clip:
     start = [torch.randn(s, generator=torch.Generator().manual_seed(i)) for i, s in enumerate(shapes)]
     # Two optimizers, as the stack has (task, heads), with different learning rates.
     ours = [torch.nn.Parameter(t.clone()) for t in start]
-    fused = FusedAdamStep([torch.optim.Adam(ours[:2], lr=0.01, eps=1e-5), torch.optim.Adam(ours[2:], lr=0.003)], grad_clip, segments=[1, 1])
+    fused = FusedAdamStep(
+        [torch.optim.Adam(ours[:2], lr=0.01, eps=1e-5), torch.optim.Adam(ours[2:], lr=0.003)], grad_clip, segments=[1, 1]
+    )
     # The reference: each replica its own pair of torch Adams, clipped by RLlib's global-norm rule on its own gradients.
     ref = [[torch.nn.Parameter(t[r].clone()) for t in start] for r in range(2)]
     ref_opts = [[torch.optim.Adam(p[:2], lr=0.01, eps=1e-5), torch.optim.Adam(p[2:], lr=0.003)] for p in ref]
@@ -45,7 +47,9 @@ def test_fused_step_equals_torch_adam_with_each_replica_clipped_alone(grad_clip:
             assert norms[0].shape == (2,) and float(norms[0][0]) > grad_clip > float(norms[0][1])
         for i, p in enumerate(ours):
             for r in range(2):
-                torch.testing.assert_close(p.detach()[r], ref[r][i].detach(), rtol=1e-6, atol=1e-7, msg=f"param {i} replica {r} step {step}")
+                torch.testing.assert_close(
+                    p.detach()[r], ref[r][i].detach(), rtol=1e-6, atol=1e-7, msg=f"param {i} replica {r} step {step}"
+                )
     # The moments live in the optimizers' own state, as torch.optim.Adam keeps them (checkpoints read them).
     state = fused.optimizers[0].state[ours[0]]
     assert int(state["step"]) == 4 and state["exp_avg"].shape == shapes[0]

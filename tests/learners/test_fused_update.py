@@ -16,7 +16,9 @@ from rllib_conv.modules.packed.stacked_multi import STACK_ID
 from tests.helpers import bandit_setup, build_learner, hand_batch, params_of
 
 
-def _update(fused: bool, setup_overrides: dict, epochs: int, minibatch: int, rows: int, seed: int = 7) -> dict[str, dict[str, torch.Tensor]]:
+def _update(
+    fused: bool, setup_overrides: dict, epochs: int, minibatch: int, rows: int, seed: int = 7
+) -> dict[str, dict[str, torch.Tensor]]:
     learner = build_learner(bandit_setup(**setup_overrides))
     update = learner.update if fused else lambda **kw: PPOTorchLearner.update(learner, **kw)  # RLlib's own loop, the reference
     # Shuffles from NumPy's global RNG, as RLlib's loop draws them (per-module generators are tested below).
@@ -60,7 +62,10 @@ def test_plan_matches_rllibs_cyclic_iterator_row_for_row() -> None:
     sizes = {"a": 10, "b": 7}
     batch = MultiAgentBatch({mid: SampleBatch({"row": np.arange(n)}) for mid, n in sizes.items()}, env_steps=17)
     np.random.seed(1)
-    theirs = [{mid: mb.policy_batches[mid]["row"].tolist() for mid in sizes} for mb in MiniBatchCyclicIterator(batch, num_epochs=3, minibatch_size=4, shuffle_batch_per_epoch=True)]
+    theirs = [
+        {mid: mb.policy_batches[mid]["row"].tolist() for mid in sizes}
+        for mb in MiniBatchCyclicIterator(batch, num_epochs=3, minibatch_size=4, shuffle_batch_per_epoch=True)
+    ]
     np.random.seed(1)
     ours = [{mid: rows.tolist() for mid, rows in mb.items()} for mb in CyclicMinibatchPlan(sizes, 4, 3, shuffle=True)]
     assert ours == theirs and len(ours) >= 3 * 10 // 4

@@ -26,9 +26,13 @@ def test_marginal_distance_by_hand() -> None:
     h2 = torch.log(torch.tensor([[0.1, 0.6, 0.3], [0.6, 0.2, 0.2]]))
     assert marginal_distance(task, torch.stack([h1, h2])).item() == pytest.approx((0.30 + 4 / 15) / 2, abs=1e-6)
     # The task module matching the mean policy exactly costs nothing.
-    assert marginal_distance(torch.log(torch.tensor([[0.4, 0.4, 0.2]])), torch.stack([h1[:1], h2[:1]])).item() == pytest.approx(0.0, abs=1e-6)
+    assert marginal_distance(torch.log(torch.tensor([[0.4, 0.4, 0.2]])), torch.stack([h1[:1], h2[:1]])).item() == pytest.approx(
+        0.0, abs=1e-6
+    )
     # Per replica ([K, ...] in, [K] out), padding rows left out: replica 1 is replica 0 with a padded row.
-    stacked = marginal_distance(torch.stack([task, task]), torch.stack([torch.stack([h1, h2])] * 2), torch.tensor([[True, True], [True, False]]))
+    stacked = marginal_distance(
+        torch.stack([task, task]), torch.stack([torch.stack([h1, h2])] * 2), torch.tensor([[True, True], [True, False]])
+    )
     assert stacked.tolist() == pytest.approx([(0.30 + 4 / 15) / 2, 0.30], abs=1e-6)
 
 
@@ -82,7 +86,9 @@ def test_batched_train_forward_matches_each_heads_own_forward() -> None:
         )
 
 
-@pytest.mark.parametrize("overrides", [{"lam": 0.5}, {"method": "agg"}, {"method": "no_task_logits"}, {"method": "oracle"}, {"model": {"z_dim": 5}}])
+@pytest.mark.parametrize(
+    "overrides", [{"lam": 0.5}, {"method": "agg"}, {"method": "no_task_logits"}, {"method": "oracle"}, {"model": {"z_dim": 5}}]
+)
 def test_the_stack_plays_as_its_plain_modules(overrides: dict) -> None:
     """A replica's heads in the stack give the logits and values of the plain modules it exports, for every method."""
     setup = bandit_setup(**overrides)
@@ -91,5 +97,10 @@ def test_the_stack_plays_as_its_plain_modules(overrides: dict) -> None:
     batch = hand_batch(learner.module.head_ids(), seed=2)
     for view_id, plain_id in zip(learner.module.head_ids(), setup.head_ids):
         obs = batch[view_id]["obs"]
-        torch.testing.assert_close(learner.module[view_id].forward_train(batch[view_id])["action_dist_inputs"], plain[plain_id].forward_train({"obs": obs})["action_dist_inputs"])
-        torch.testing.assert_close(learner.module[view_id].compute_values(batch[view_id]), plain[plain_id].compute_values({"obs": obs}))
+        torch.testing.assert_close(
+            learner.module[view_id].forward_train(batch[view_id])["action_dist_inputs"],
+            plain[plain_id].forward_train({"obs": obs})["action_dist_inputs"],
+        )
+        torch.testing.assert_close(
+            learner.module[view_id].compute_values(batch[view_id]), plain[plain_id].compute_values({"obs": obs})
+        )

@@ -59,20 +59,38 @@ def test_weighted_partners_are_drawn_with_their_weights_reproducibly() -> None:
 def test_a_replica_draws_its_partners_as_it_would_alone() -> None:
     names = ["a", "b", "c"]
     alone = PartnerMapping(names, "player_0", "player_1", schedule=WeightedPartners({"a": 1.0, "b": 1.0, "c": 1.0}, [7]))
-    packed = PartnerMapping(names, "player_0", "player_1", replica_partners=[names] * 3, schedule=WeightedPartners({"a": 1.0, "b": 1.0, "c": 1.0}, [5, 7, 9]))
+    packed = PartnerMapping(
+        names,
+        "player_0",
+        "player_1",
+        replica_partners=[names] * 3,
+        schedule=WeightedPartners({"a": 1.0, "b": 1.0, "c": 1.0}, [5, 7, 9]),
+    )
     assert _partners_played(packed, 40, replica=1) == _partners_played(alone, 40)
     assert _partners_played(packed, 40, replica=0) != _partners_played(packed, 40, replica=1)
 
 
 def test_a_users_function_chooses_the_partner_of_each_episode() -> None:
-    m = PartnerMapping(["a", "b", "c"], "player_0", "player_1", schedule=PartnerFunction("tests.modules.mapping_functions:alternate_first_two", [0]))
+    m = PartnerMapping(
+        ["a", "b", "c"],
+        "player_0",
+        "player_1",
+        schedule=PartnerFunction("tests.modules.mapping_functions:alternate_first_two", [0]),
+    )
     assert _partners_played(m, 5) == ["a", "b", "a", "b", "a"]
     assert m("player_0", ep(1)) == "ego@b"
     state = m.get_state()
-    restored = PartnerMapping(["a", "b", "c"], "player_0", "player_1", schedule=PartnerFunction("tests.modules.mapping_functions:alternate_first_two", [0]))
+    restored = PartnerMapping(
+        ["a", "b", "c"],
+        "player_0",
+        "player_1",
+        schedule=PartnerFunction("tests.modules.mapping_functions:alternate_first_two", [0]),
+    )
     restored.set_state(state)
     assert _partners_played(restored, 7)[5:] == ["b", "a"]  # it goes on counting episodes where it stopped
-    wrong = PartnerMapping(["a", "b"], "player_0", "player_1", schedule=PartnerFunction("tests.modules.mapping_functions:nobody", [0]))
+    wrong = PartnerMapping(
+        ["a", "b"], "player_0", "player_1", schedule=PartnerFunction("tests.modules.mapping_functions:nobody", [0])
+    )
     with pytest.raises(ValueError, match="returned 'nobody' for episode 0; expected one of \\['a', 'b'\\]"):
         wrong("player_0", ep(0))
 
@@ -112,7 +130,9 @@ def test_mapping_settings_are_validated() -> None:
 )
 @pytest.mark.slow
 def test_training_plays_the_partners_the_mapping_chooses(ray_session, mapping: dict, played: set[str]) -> None:
-    exp = ExperimentConfig(population="bandit-s2-hand", model={"hidden": 8}, ppo={"rollout_per_partner": 16, "num_epochs": 1}, mapping=mapping)
+    exp = ExperimentConfig(
+        population="bandit-s2-hand", model={"hidden": 8}, ppo={"rollout_per_partner": 16, "num_epochs": 1}, mapping=mapping
+    )
     algo = build_ppo_config(resolve(exp)).build_algo()
     try:
         sampled = algo.train()["env_runners"]["num_module_steps_sampled_lifetime"]

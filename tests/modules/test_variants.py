@@ -109,7 +109,9 @@ def test_blocks_oracle_hand_rule(new_task: bool, state: tuple, optimal: list[int
 def test_every_method_trains_an_iteration(ray_session, method: str) -> None:
     from rllib_conv.training.experiment import ExperimentConfig
 
-    exp = ExperimentConfig(population="bandit-s2-hand", method=method, model={"hidden": 8}, ppo={"rollout_per_partner": 16, "num_epochs": 1})
+    exp = ExperimentConfig(
+        population="bandit-s2-hand", method=method, model={"hidden": 8}, ppo={"rollout_per_partner": 16, "num_epochs": 1}
+    )
     algo = build_ppo_config(resolve(exp)).build_algo()
     try:
         result = algo.train()
@@ -123,7 +125,12 @@ def test_hanabi_ego_only_ever_plays_legal_moves(ray_session) -> None:
     from rllib_conv.training.experiment import ExperimentConfig
 
     # HanabiEnv raises on any illegal move, so a clean iteration proves sampling is masked.
-    exp = ExperimentConfig(population="hanabi-scripted", lam=0.5, model={"hidden": 16}, ppo={"rollout_per_partner": 200, "minibatch_size": 50, "num_epochs": 1})
+    exp = ExperimentConfig(
+        population="hanabi-scripted",
+        lam=0.5,
+        model={"hidden": 16},
+        ppo={"rollout_per_partner": 200, "minibatch_size": 50, "num_epochs": 1},
+    )
     algo = build_ppo_config(resolve(exp)).build_algo()
     try:
         result = algo.train()

@@ -23,9 +23,7 @@ RANDOM_RANGE = (0.45, 0.62)
 RULE_MIN, RULE_MARGIN = 3.4, 2.5
 
 
-def selfplay_scores(
-    partners: list[Partner], episodes: int, config: dict | None = None, first_seed: int = 0
-) -> np.ndarray:
+def selfplay_scores(partners: list[Partner], episodes: int, config: dict | None = None, first_seed: int = 0) -> np.ndarray:
     """Final scores of `episodes` games; game e uses env seed e and partner seeds derived from it."""
     env = HanabiEnv(**(config or {}))
     n = env.config["players"]

@@ -110,6 +110,8 @@ def test_a_population_reference_keeps_names_and_makes_paths_absolute(tmp_path, m
     assert population_ref("pop/population.json") == str((tmp_path / "pop" / "population.json").resolve())
     assert population_ref("missing") == "missing"  # left for `partners.get` to name the problem
     pop = str((tmp_path / "pop").resolve())
-    assert with_absolute_paths({"population": {"grid_search": ["pop", "blocks-perm"]}}, "population") == {"population": {"grid_search": [pop, "blocks-perm"]}}
+    assert with_absolute_paths({"population": {"grid_search": ["pop", "blocks-perm"]}}, "population") == {
+        "population": {"grid_search": [pop, "blocks-perm"]}
+    }
     assert with_absolute_paths({"new_population": "pop", "seed": 1}, "new_population") == {"new_population": pop, "seed": 1}
     assert with_absolute_paths({"seed": 1}, "population") == {"seed": 1}

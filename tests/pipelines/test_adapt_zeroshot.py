@@ -33,7 +33,9 @@ def test_adaptation_adds_a_fresh_head_and_reaches_the_new_partner(bandit_egos, t
     assert setup.head_ids == [ego_id("hand-test-1")] and set(load) == {TASK_ID}  # a new head, the task module kept
     assert setup.exp.lam == 0.0 and setup.exp.ppo.num_epochs == 50 and setup.exp.ppo.rollout_per_partner == 16
 
-    curves = run_adaptation({"name": "a", "runs": [str(trial)], "partners": ["hand-test-1"]}, out=tmp_path, storage=tmp_path / "runs")
+    curves = run_adaptation(
+        {"name": "a", "runs": [str(trial)], "partners": ["hand-test-1"]}, out=tmp_path, storage=tmp_path / "runs"
+    )
     assert list(curves.columns) == CURVE_COLUMNS
     assert curves["steps"].tolist() == list(range(0, 241, 16))
     assert (curves["method"] == "modular").all() and (curves["lam"] == 0.5).all() and (curves["partner"] == "hand-test-1").all()
@@ -51,7 +53,11 @@ def test_curves_packed_together_equal_curves_run_one_at_a_time(bandit_egos, tmp_
     raw = {"name": "p", "runs": [trial], "partners": ["hand-test-0", "hand-test-1", "hand-test-2"], "steps": 64, "episodes": 50}
     packed = run_adaptation(raw, out=tmp_path / "packed", storage=tmp_path / "runs")
     alone = run_adaptation({**raw, "name": "a", "max_pack": 1}, out=tmp_path / "alone", storage=tmp_path / "runs")
-    assert len(list((tmp_path / "runs" / "adapt-p").glob("AdaptTrainable_*"))) < len(list((tmp_path / "runs" / "adapt-a").glob("AdaptTrainable_*"))) == 3
+    assert (
+        len(list((tmp_path / "runs" / "adapt-p").glob("AdaptTrainable_*")))
+        < len(list((tmp_path / "runs" / "adapt-a").glob("AdaptTrainable_*")))
+        == 3
+    )
     pd.testing.assert_frame_equal(packed, alone, rtol=1e-5, atol=1e-6)
     assert packed["exact_return"].nunique() > 3  # the curves moved
 
@@ -94,7 +100,11 @@ def test_scratch_starts_from_nothing(bandit_egos, tmp_path) -> None:
     trial = bandit_egos["bandit-s2-hand"].path
     curve = adapt_curve(AdaptConfig(runs=[trial], method="scratch"), trial, "hand-test-0")
     assert curve.load == {} and curve.setup.head_ids == [AGG_HEAD_ID]
-    curves = run_adaptation({"name": "s", "runs": [trial], "partners": ["hand-test-0"], "method": "scratch", "steps": 32}, out=tmp_path, storage=tmp_path / "runs")
+    curves = run_adaptation(
+        {"name": "s", "runs": [trial], "partners": ["hand-test-0"], "method": "scratch", "steps": 32},
+        out=tmp_path,
+        storage=tmp_path / "runs",
+    )
     assert curves["exact_return"].iloc[0] < 0.5  # a fresh network knows neither rules nor conventions
     assert (curves["method"] == "scratch").all()
 
@@ -102,7 +112,9 @@ def test_scratch_starts_from_nothing(bandit_egos, tmp_path) -> None:
 @pytest.mark.slow
 def test_zero_shot_composes_new_task_module_with_test_partner_heads(bandit_egos, tmp_path) -> None:
     trial = bandit_egos["bandit-s1-hand"].path
-    table = run_zeroshot({"name": "z", "runs": [trial], "head_steps": 1024, "task_steps": 4096}, out=tmp_path, storage=tmp_path / "runs")
+    table = run_zeroshot(
+        {"name": "z", "runs": [trial], "head_steps": 1024, "task_steps": 4096}, out=tmp_path, storage=tmp_path / "runs"
+    )
     assert sorted(table["partner"]) == [f"hand-test-{k}" for k in range(4)]
     assert (table["exact_return"] >= 0.9).all(), table
     assert (tmp_path / "z.csv").is_file()
@@ -127,7 +139,9 @@ def test_zero_shot_steps_carry_their_settings(method: str) -> None:
     from rllib_conv.pipelines.zeroshot_config import ZeroShotConfig
 
     modular = method == "modular"
-    trained = ExperimentConfig(population="blocks-perm", method=method, lam=0.5 if modular else 0.0, head_l2=0.01 if modular else 0.0)
+    trained = ExperimentConfig(
+        population="blocks-perm", method=method, lam=0.5 if modular else 0.0, head_l2=0.01 if modular else 0.0
+    )
     cfg = ZeroShotConfig(runs=["-"], head_lam=0.3, task_z_lr_scale=0.2, task_entropy=0.01)
     steps = step_experiments(trained, cfg)
     heads, task = steps["heads"], steps["task"]
@@ -151,7 +165,9 @@ def test_outer_update_by_hand() -> None:
 
 @pytest.mark.slow
 def test_one_maml_outer_step_moves_weights_by_outer_step_times_adaptation(ray_session) -> None:
-    exp = ExperimentConfig(population="bandit-s2-hand", method="maml", model={"hidden": 8}, ppo={"rollout_per_partner": 16, "num_epochs": 2})
+    exp = ExperimentConfig(
+        population="bandit-s2-hand", method="maml", model={"hidden": 8}, ppo={"rollout_per_partner": 16, "num_epochs": 2}
+    )
     setup = resolve(exp)
     algo = build_ppo_config(setup).build_algo()
     try:

@@ -41,7 +41,12 @@ class RecordingLearner(MarginalPPOLearner):
 
 def small(population: str, **overrides) -> ExperimentConfig:
     """A quick experiment: small networks and batches, a few iterations' worth of steps."""
-    base = {"population": population, "lam": 0.5, "model": {"hidden": 16}, "ppo": {"rollout_per_partner": 60, "minibatch_size": 30, "num_epochs": 2}}
+    base = {
+        "population": population,
+        "lam": 0.5,
+        "model": {"hidden": 16},
+        "ppo": {"rollout_per_partner": 60, "minibatch_size": 30, "num_epochs": 2},
+    }
     return ExperimentConfig.model_validate({**base, **overrides})
 
 

@@ -27,13 +27,21 @@ def test_blocks_plan_adds_ours_with_the_head_penalty() -> None:
     plan = plan_for("blocks")
     assert [m.label for m in plan.zeroshot_methods] == ["modular-lam0.5", "no_task_logits", "modular-lam0.5-hl0.01"]
     assert [m.label for m in plan_for("bandit").zeroshot_methods] == ["modular-lam0.5", "no_task_logits"]
-    assert [m.label for m in plan.selfplay_methods] == ["modular-lam0.5", "agg", "no_task_logits", "maml", "modular-lam0.5-hl0.01"]
+    assert [m.label for m in plan.selfplay_methods] == [
+        "modular-lam0.5",
+        "agg",
+        "no_task_logits",
+        "maml",
+        "modular-lam0.5-hl0.01",
+    ]
     penalised = next(m for m in plan.populations["blocks-perm"] if m.label == "modular-lam0.5-hl0.01")
     assert penalised.settings == {"method": "modular", "lam": 0.5, "head_l2": 0.01}
     narrowed = Reproduction(narrow(plan_for("blocks"), ["blocks-perm"], ["agg"]), Path("unused"))
     assert [m.label for _, m in narrowed.trained()] == ["modular-lam0.5", "agg"]
     # Zero-shot compares its methods with each other: --methods does not narrow them.
-    assert narrowed.stage_experiments("zeroshot") == [f"blocks-perm__{m}" for m in ("modular-lam0.5", "no_task_logits", "modular-lam0.5-hl0.01")]
+    assert narrowed.stage_experiments("zeroshot") == [
+        f"blocks-perm__{m}" for m in ("modular-lam0.5", "no_task_logits", "modular-lam0.5-hl0.01")
+    ]
 
 
 def test_hanabi_plan_compares_ours_with_every_baseline_the_other_games_have() -> None:
@@ -64,7 +72,14 @@ def test_blocks_plan_adapts_ours_from_a_picked_head_and_by_the_plain_and_guarded
     # Adapt-only variants train nothing; each runs where its base egos are in the (narrowed) plan.
     narrowed = Reproduction(narrow(plan, ["blocks-perm", "blocks-selfplay"], ["agg"]), Path("unused"))
     trained = [f"{p}__{m}" for p in ("blocks-perm", "blocks-selfplay") for m in ("modular-lam0.5", "agg")]
-    assert narrowed.stage_experiments("adapt") == [*trained, *(f"{p}__{v}" for p in ("blocks-perm", "blocks-selfplay") for v in ("scratch", "modular-lam0.5-pick", "beyond-posterior", "beyond-guarded"))]
+    assert narrowed.stage_experiments("adapt") == [
+        *trained,
+        *(
+            f"{p}__{v}"
+            for p in ("blocks-perm", "blocks-selfplay")
+            for v in ("scratch", "modular-lam0.5-pick", "beyond-posterior", "beyond-guarded")
+        ),
+    ]
     full = Reproduction(plan_for("blocks"), Path("unused")).stage_experiments("adapt")
     assert "blocks-selfplay__modular-lam0.5-hl0.01-pick" in full and "blocks-perm__modular-lam0.5-hl0.01-pick" in full
 
@@ -96,7 +111,9 @@ def test_a_stage_reruns_only_when_the_plan_asks_for_more_than_its_marker_covers(
     # Zero-shot's own egos (bandit-s2-hand is a zero-shot population, no_task_logits a zero-shot method) train here too.
     trained = ["modular-lam0.5", "agg", "no_task_logits"]
     assert covered == [f"bandit-s2-hand__{m} seeds=0,1,2 steps=10000" for m in trained] and seconds >= 0
-    assert json.loads((tmp_path / "plan.json").read_text())["items"] == {"train": covered}  # what a report checks the marker against
+    assert json.loads((tmp_path / "plan.json").read_text())["items"] == {
+        "train": covered
+    }  # what a report checks the marker against
 
     Reproduction(narrow(plan_for("bandit"), ["bandit-s2-hand"], ["agg"]), tmp_path, log=logs.append).run()
     assert len(calls) == 1 and logs[-1] == "[bandit] train: done before, skipped"
@@ -116,11 +133,15 @@ def test_egos_train_for_the_papers_budget_unless_train_steps_sets_another(tmp_pa
     assert default.stage_items("train") == [f"blocks-perm__{m} seeds=0,1,2 steps=1000000" for m in trained]
 
     bandit = Reproduction(narrow(plan_for("bandit"), ["bandit-s2-hand", "bandit-user-study"], ["agg"]), tmp_path)
-    assert [i.rsplit(" ", 1)[1] for i in bandit.stage_items("train")] == ["steps=10000"] * 2 + ["steps=40000"] * 2 + ["steps=10000"]  # the user-study override
+    assert [i.rsplit(" ", 1)[1] for i in bandit.stage_items("train")] == ["steps=10000"] * 2 + ["steps=40000"] * 2 + [
+        "steps=10000"
+    ]  # the user-study override
 
     short = Reproduction(narrow(plan_for("bandit", train_steps=500), ["bandit-s2-hand", "bandit-user-study"], ["agg"]), tmp_path)
     assert all(short.experiment(p, m)["run"]["timesteps"] == 500 for p, m in short.trained())  # over the population override too
-    assert short.experiment("bandit-user-study", short.plan.paper_method)["ppo"] == {"rollout_per_partner": 16}  # the rest of it kept
+    assert short.experiment("bandit-user-study", short.plan.paper_method)["ppo"] == {
+        "rollout_per_partner": 16
+    }  # the rest of it kept
 
     # A folder trained with one budget is not done for another: the train stage runs again.
     calls: list[str] = []
@@ -155,10 +176,14 @@ def test_a_marker_without_items_covers_nothing(tmp_path, monkeypatch) -> None:
     assert calls == ["bandit"] and seconds >= 12.5 and len(covered) == 3
 
 
-def test_marginals_leave_out_unfinished_or_unbegun_trials_and_populations_whose_conventions_are_not_uniform(tmp_path, monkeypatch) -> None:
+def test_marginals_leave_out_unfinished_or_unbegun_trials_and_populations_whose_conventions_are_not_uniform(
+    tmp_path, monkeypatch
+) -> None:
     plan = narrow(plan_for("bandit"), ["bandit-s2-hand", "bandit-user-study"], ["agg"])
     repro = Reproduction(plan, tmp_path, log=lambda _: None)
-    assert repro.stage_items("marginals") == [f"bandit-s2-hand__{m} seeds=0,1,2" for m in ("agg", "modular-lam0.5", "no_task_logits")]
+    assert repro.stage_items("marginals") == [
+        f"bandit-s2-hand__{m} seeds=0,1,2" for m in ("agg", "modular-lam0.5", "no_task_logits")
+    ]
     assert len(repro.stage_items("train")) == 5  # the user-study egos are still trained and adapted
     for name in ("bandit-s2-hand__agg", "bandit-user-study__agg", "bandit-s2-hand__maml"):
         (tmp_path / "runs" / name / "point_0" / "seed=0").mkdir(parents=True)
@@ -169,7 +194,10 @@ def test_marginals_leave_out_unfinished_or_unbegun_trials_and_populations_whose_
     (tmp_path / "runs" / "bandit-s2-hand__oracle").mkdir()
     (tmp_path / "runs" / "bandit-s2-hand__oracle" / "experiment.yaml").write_text("{}")
     seen: list[str] = []
-    monkeypatch.setattr("rllib_conv.pipelines.reproduce.marginal_report", lambda trials: seen.extend(t.parent.parent.name for t in trials) or pd.DataFrame({"run": [str(t) for t in trials]}))
+    monkeypatch.setattr(
+        "rllib_conv.pipelines.reproduce.marginal_report",
+        lambda trials: seen.extend(t.parent.parent.name for t in trials) or pd.DataFrame({"run": [str(t) for t in trials]}),
+    )
     repro.stage_marginals()
     assert seen == ["bandit-s2-hand__agg"]
 

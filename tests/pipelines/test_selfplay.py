@@ -33,7 +33,9 @@ OBS, MASK = bandit_states({"symmetric": 2})
 
 
 def selfplay_raw(**overrides) -> dict:
-    raw = config_files.load("tune_configs/selfplay_bandit.yaml", ["train_pairs=2", "test_pairs=1", "run.timesteps=12000"], schema=SelfPlayConfig)
+    raw = config_files.load(
+        "tune_configs/selfplay_bandit.yaml", ["train_pairs=2", "test_pairs=1", "run.timesteps=12000"], schema=SelfPlayConfig
+    )
     raw.update(overrides)
     return raw
 
@@ -92,7 +94,9 @@ def test_population_folder_is_self_contained_and_loads_in_a_fresh_process(traine
 @pytest.mark.slow
 def test_trained_population_plugs_into_ego_training(trained) -> None:
     root, population, _ = trained
-    exp = ExperimentConfig(population=str(root / "pops" / "sp-test"), lam=0.5, model={"hidden": 8}, ppo={"rollout_per_partner": 32, "num_epochs": 1})
+    exp = ExperimentConfig(
+        population=str(root / "pops" / "sp-test"), lam=0.5, model={"hidden": 8}, ppo={"rollout_per_partner": 32, "num_epochs": 1}
+    )
     setup = resolve(exp)
     algo = build_ppo_config(setup).build_algo()
     batch = {"obs": {"observations": OBS, "action_mask": MASK.astype(np.float32)}}
@@ -110,7 +114,14 @@ def test_trained_population_plugs_into_ego_training(trained) -> None:
 @pytest.mark.slow
 def test_pairs_that_miss_the_gate_are_reported_not_kept(ray_session, tmp_path) -> None:
     raw = selfplay_raw(name="too-short")
-    raw.update({"train_pairs": 1, "test_pairs": 0, "run": {"timesteps": 128}, "gate": {"score": 0.95, "episodes": 100, "check_every": 1, "check_episodes": 50}})
+    raw.update(
+        {
+            "train_pairs": 1,
+            "test_pairs": 0,
+            "run": {"timesteps": 128},
+            "gate": {"score": 0.95, "episodes": 100, "check_every": 1, "check_episodes": 50},
+        }
+    )
     population, report = train_population(raw, out=tmp_path / "pops", storage=tmp_path / "runs")
     assert report["passed"].tolist() == [False] and population.partners == []
     assert pd.read_csv(tmp_path / "pops" / "too-short" / "selfplay_report.csv")["passed"].tolist() == [False]
@@ -131,7 +142,9 @@ def test_a_pair_trains_the_same_in_a_reused_worker(trained, tmp_path) -> None:
     assert later, "3 pairs on 2 CPUs: one worker should have run two of them"
     seed = later[0]["seed"]
     # The same pair (same seed) alone, in a fresh worker.
-    alone, _ = train_population(selfplay_raw(name="alone", seed=seed, train_pairs=1, test_pairs=0), out=tmp_path / "pops", storage=tmp_path / "runs")
+    alone, _ = train_population(
+        selfplay_raw(name="alone", seed=seed, train_pairs=1, test_pairs=0), out=tmp_path / "pops", storage=tmp_path / "runs"
+    )
     before, after = next(e for e in population.partners if e.seed == seed), alone.partners[0]
     for seat in (lambda e: e.build(), lambda e: partners.partner_from_spec(e.counterpart)):
         np.testing.assert_array_equal(seat(after).probs(OBS, MASK), seat(before).probs(OBS, MASK))

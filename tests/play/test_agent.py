@@ -205,7 +205,9 @@ def convention_agent(seed: int = 0):
     # Two training partners of the Train task, each the other's opposite in contexts B and C; on the
     # bandit a partner's best response is its own convention, so they stand in for the ego's heads too.
     low, high = BanditConventionPartner("low", [0, 2, 1]), BanditConventionPartner("high", [0, 3, 3])
-    return ConventionSource(models=[low, high], known=[low, high], key=bandit_context).agent(AdaptiveAgent(TRAIN, ETA, seed=seed), TRAIN, seed=seed)
+    return ConventionSource(models=[low, high], known=[low, high], key=bandit_context).agent(
+        AdaptiveAgent(TRAIN, ETA, seed=seed), TRAIN, seed=seed
+    )
 
 
 def test_the_convention_agent_plays_a_recognised_convention_at_once_and_the_table_elsewhere() -> None:

@@ -51,7 +51,12 @@ def exchange(server: StudyServer, data: bytes, pause_s: float = 0.0, more: bytes
 
 def request(method: str, path: str, body: bytes = b"", headers: dict[str, str] | None = None) -> bytes:
     # Connection: close, so that the server hangs up once it has answered (the test reads until then).
-    lines = [f"{method} {path} HTTP/1.1", "Host: 127.0.0.1", "Connection: close", *(f"{k}: {v}" for k, v in (headers or {}).items())]
+    lines = [
+        f"{method} {path} HTTP/1.1",
+        "Host: 127.0.0.1",
+        "Connection: close",
+        *(f"{k}: {v}" for k, v in (headers or {}).items()),
+    ]
     return ("\r\n".join(lines) + "\r\n\r\n").encode() + body
 
 
@@ -59,9 +64,24 @@ JSON = {"Content-Type": "application/json"}
 
 MALFORMED_HTTP = [
     # (what, bytes, expected status, words in the error)
-    ("negative Content-Length", request("POST", "/api/move", headers=JSON | {"Content-Length": "-5"}), 400, "malformed HTTP request"),
-    ("Content-Length not a number", request("POST", "/api/move", headers=JSON | {"Content-Length": "ten"}), 400, "malformed HTTP request"),
-    ("two different Content-Lengths", request("POST", "/api/move", b"{}", JSON | {"Content-Length": "2", "content-length": "3"}), 400, "malformed"),
+    (
+        "negative Content-Length",
+        request("POST", "/api/move", headers=JSON | {"Content-Length": "-5"}),
+        400,
+        "malformed HTTP request",
+    ),
+    (
+        "Content-Length not a number",
+        request("POST", "/api/move", headers=JSON | {"Content-Length": "ten"}),
+        400,
+        "malformed HTTP request",
+    ),
+    (
+        "two different Content-Lengths",
+        request("POST", "/api/move", b"{}", JSON | {"Content-Length": "2", "content-length": "3"}),
+        400,
+        "malformed",
+    ),
     ("huge Content-Length", request("POST", "/api/move", headers=JSON | {"Content-Length": str(10**12)}), 413, "at most 16384"),
     ("a request line that is not HTTP", b"HELLO THERE\r\n\r\n", 400, "malformed HTTP request"),
     ("a binary request", bytes(range(256)) * 4, 400, "malformed HTTP request"),
@@ -75,7 +95,17 @@ MALFORMED_HTTP = [
     ("OPTIONS", request("OPTIONS", "/api/info"), 405, "OPTIONS is not allowed"),
     ("an unknown path", request("GET", "/etc/passwd"), 404, "no page"),
     ("a path escaping static", request("GET", "/static/..%2f..%2fserver.py"), 404, "no page"),
-    ("a form instead of JSON", request("POST", "/api/participants", b"consent=1", {"Content-Type": "application/x-www-form-urlencoded", "Content-Length": "9"}), 415, "must be JSON"),
+    (
+        "a form instead of JSON",
+        request(
+            "POST",
+            "/api/participants",
+            b"consent=1",
+            {"Content-Type": "application/x-www-form-urlencoded", "Content-Length": "9"},
+        ),
+        415,
+        "must be JSON",
+    ),
     ("no Content-Type", request("POST", "/api/participants", b"{}", {"Content-Length": "2"}), 415, "must be JSON"),
 ]
 
@@ -136,12 +166,32 @@ def test_bad_moves_and_unknown_ids_get_4xx_and_change_nothing(server: StudyServe
 # The five inputs that were HTTP 500s (issue 47): Python's int-length limit, float overflow, a Unicode digit.
 FORMER_500S = [
     ("step of 5000 digits", b'{"token": "%s", "step": ' + b"9" * 5000 + b', "arm": 1}', 400, "must be a JSON object"),
-    ("step = 1e400 as an integer", b'{"token": "%s", "step": 1' + b"0" * 400 + b', "arm": 1}', 400, "step must be an integer from 0 to"),
-    ("arm = 1e400 as an integer", b'{"token": "%s", "step": 0, "arm": 1' + b"0" * 400 + b"}", 400, "arm must be an integer from 1 to 4"),
+    (
+        "step = 1e400 as an integer",
+        b'{"token": "%s", "step": 1' + b"0" * 400 + b', "arm": 1}',
+        400,
+        "step must be an integer from 0 to",
+    ),
+    (
+        "arm = 1e400 as an integer",
+        b'{"token": "%s", "step": 0, "arm": 1' + b"0" * 400 + b"}",
+        400,
+        "arm must be an integer from 1 to 4",
+    ),
     ("arm = 1e400", b'{"token": "%s", "step": 0, "arm": 1e400}', 400, "arm must be an integer from 1 to 4"),
-    ("arm a superscript two", '{"token": "%s", "step": 0, "arm": "²"}'.encode(), 400, "arm must be an integer from 1 to 4, got '²'"),
+    (
+        "arm a superscript two",
+        '{"token": "%s", "step": 0, "arm": "²"}'.encode(),
+        400,
+        "arm must be an integer from 1 to 4, got '²'",
+    ),
     ("step a superscript two", '{"token": "%s", "step": "²", "arm": 1}'.encode(), 400, "step must be an integer from 0 to"),
-    ("arm an Arabic-Indic digit", '{"token": "%s", "step": 0, "arm": "\u0661"}'.encode(), 400, "arm must be an integer from 1 to 4"),
+    (
+        "arm an Arabic-Indic digit",
+        '{"token": "%s", "step": 0, "arm": "\u0661"}'.encode(),
+        400,
+        "arm must be an integer from 1 to 4",
+    ),
     ("consent of 4000 digits", b'{"consent": ' + b"7" * 4000 + b"}", 400, "consent must be true"),
     ("participant of 4000 digits", b'{"consent": true, "participant": ' + b"7" * 4000 + b"}", 400, "participant must be an id"),
 ]

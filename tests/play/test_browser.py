@@ -82,7 +82,9 @@ def assert_lay_words(page: Page) -> None:
     """What a participant reads (the visible text, the history table included) is free of researchers' words."""
     page.evaluate("document.getElementById('history-box').open = true")
     text = page.locator("body").inner_text()
-    assert not [w for w in RESEARCHER_WORDS if w.lower() in text.lower()], [w for w in RESEARCHER_WORDS if w.lower() in text.lower()]
+    assert not [w for w in RESEARCHER_WORDS if w.lower() in text.lower()], [
+        w for w in RESEARCHER_WORDS if w.lower() in text.lower()
+    ]
 
 
 @pytest.mark.slow
@@ -98,11 +100,16 @@ def test_a_participant_plays_the_agent_from_consent_to_completion_code(study_ego
     picks = []
     for i, (task, context, attempt) in enumerate(SCHEDULE):
         page.wait_for_selector('body[data-phase="choose"]', state="attached")
-        expect(page.locator("#where")).to_have_text(f"Part {1 if task == 'train' else 2} of 2 · situation {context} · try {attempt} of 5")
+        expect(page.locator("#where")).to_have_text(
+            f"Part {1 if task == 'train' else 2} of 2 · situation {context} · try {attempt} of 5"
+        )
         arm = good_arms(page)[0]  # a consistent person: the left-most green arm
         page.click(f'.arm[data-arm="{arm}"]')
         wait_played(page, i + 1)
-        assert f"situation {context}, try {attempt}): you pulled arm {arm}, the agent pulled arm" in page.locator("#last").inner_text()
+        assert (
+            f"situation {context}, try {attempt}): you pulled arm {arm}, the agent pulled arm"
+            in page.locator("#last").inner_text()
+        )
         picks.append(arm)
         if i in (0, 15):  # Part 1, and Part 2 as it starts
             assert_no_internals(page)

@@ -63,7 +63,9 @@ def test_a_second_positional_when_serving_is_refused(started: list[StudyServer],
     assert folder(tmp_path) == {} and not started
 
 
-def test_a_short_admin_token_is_refused_before_anything_is_written(started: list[StudyServer], tmp_path: Path, capsys, monkeypatch) -> None:
+def test_a_short_admin_token_is_refused_before_anything_is_written(
+    started: list[StudyServer], tmp_path: Path, capsys, monkeypatch
+) -> None:
     assert main(["play", "--agent", "a=oracle", "--admin-token", "abc"]) == 2
     assert "--admin-token must be at least 8 characters" in capsys.readouterr().err
     monkeypatch.setenv(ADMIN_TOKEN_ENV, "short")
@@ -85,7 +87,9 @@ def newer_schema_db(path: Path, wal: bool) -> None:
 
 
 @pytest.mark.parametrize("wal", [False, True], ids=["rollback-journal", "wal"])
-def test_a_newer_schema_is_refused_by_play_and_export_leaving_the_folder_byte_identical(started: list[StudyServer], tmp_path: Path, capsys, wal: bool) -> None:
+def test_a_newer_schema_is_refused_by_play_and_export_leaving_the_folder_byte_identical(
+    started: list[StudyServer], tmp_path: Path, capsys, wal: bool
+) -> None:
     study = tmp_path / "study"
     newer_schema_db(study / DB_FILE, wal)
     before = folder(tmp_path)
@@ -120,7 +124,9 @@ def test_export_takes_db_as_the_positional_or_as_db(tmp_path: Path, capsys) -> N
     assert "differ; give the database once" in capsys.readouterr().err
 
 
-def test_an_admin_token_from_the_environment_is_not_printed(started: list[StudyServer], tmp_path: Path, capsys, monkeypatch) -> None:
+def test_an_admin_token_from_the_environment_is_not_printed(
+    started: list[StudyServer], tmp_path: Path, capsys, monkeypatch
+) -> None:
     secret = "from-the-environment-1234"
     monkeypatch.setenv(ADMIN_TOKEN_ENV, secret)
     assert main(["play", "--agent", "agent=oracle", "--port", "0"]) == 0

@@ -48,7 +48,12 @@ def encode(value: Any) -> str:
     return json.dumps(value, allow_nan=True)
 
 
-big_literals = st.builds(lambda sign, lead, n: Raw(sign + lead + "0" * n), st.sampled_from(["", "-"]), st.sampled_from("123456789"), st.integers(300, 6000))
+big_literals = st.builds(
+    lambda sign, lead, n: Raw(sign + lead + "0" * n),
+    st.sampled_from(["", "-"]),
+    st.sampled_from("123456789"),
+    st.integers(300, 6000),
+)
 tricky = st.sampled_from(["²", "١", "߁", "1e400", " 3 ", "-0", "0x1", "NaN", "", "\x00", "1" * 25, "3\n", "⁴", "\ud800"])
 scalars = st.one_of(
     st.none(),
@@ -61,7 +66,9 @@ scalars = st.one_of(
     big_literals,
     st.sampled_from([Raw("1e400"), Raw("-1e400"), Raw("1E99999"), Raw("[" * 3000 + "]" * 3000)]),
 )
-values = st.recursive(scalars, lambda inner: st.lists(inner, max_size=3) | st.dictionaries(st.text(max_size=8), inner, max_size=3), max_leaves=6)
+values = st.recursive(
+    scalars, lambda inner: st.lists(inner, max_size=3) | st.dictionaries(st.text(max_size=8), inner, max_size=3), max_leaves=6
+)
 
 
 @dataclass
@@ -85,7 +92,10 @@ def studies(tmp_path_factory) -> Iterator[dict[str, Study]]:
         srv = StudyServer(settings_, db, port=0, admin_token=ADMIN_TOKEN, enrol_limit=0, request_timeout_s=2.0)
         srv.start()
         with httpx.Client(base_url=srv.url, timeout=10) as c:
-            tokens = [c.post("/api/participants", json={"consent": True, "participant": f"{game}-{i}"}).json()["token"] for i in range(4)]
+            tokens = [
+                c.post("/api/participants", json={"consent": True, "participant": f"{game}-{i}"}).json()["token"]
+                for i in range(4)
+            ]
         if game == "blocks":
             for t in tokens[:2]:
                 live.enter_context(connect(srv.url.replace("http://", "ws://") + f"api/live?token={t}", open_timeout=5))
@@ -106,21 +116,39 @@ def requests(tokens: list[str]) -> st.SearchStrategy:
     token = field(st.sampled_from(tokens))
     query_token = st.one_of(st.sampled_from(tokens), st.text(max_size=40))
     enrol = st.fixed_dictionaries(
-        {}, optional={"consent": field(st.just(True)), "participant": field(st.from_regex(r"\A[A-Za-z0-9._-]{1,64}\Z")), "token": token}
+        {},
+        optional={
+            "consent": field(st.just(True)),
+            "participant": field(st.from_regex(r"\A[A-Za-z0-9._-]{1,64}\Z")),
+            "token": token,
+        },
     )
     move = st.fixed_dictionaries(
-        {}, optional={"token": token, "step": field(st.integers(0, 31)), "arm": field(st.integers(0, 5)), "action": field(st.integers(-1, 7))}
+        {},
+        optional={
+            "token": token,
+            "step": field(st.integers(0, 31)),
+            "arm": field(st.integers(0, 5)),
+            "action": field(st.integers(-1, 7)),
+        },
     )
     bodies = st.one_of(enrol, move, values)  # either endpoint may get the other's fields, or anything
     admin_token = st.one_of(st.just(ADMIN_TOKEN), st.text(max_size=30))
     return st.one_of(
         st.tuples(st.just("POST"), st.just("/api/participants"), bodies.map(encode), st.just({})),
         st.tuples(st.just("POST"), st.just("/api/move"), bodies.map(encode), st.just({})),
-        st.tuples(st.sampled_from(["POST"]), st.sampled_from(["/api/participants", "/api/move"]), st.binary(max_size=200).map(lambda b: b.decode("latin-1")), st.just({})),
+        st.tuples(
+            st.sampled_from(["POST"]),
+            st.sampled_from(["/api/participants", "/api/move"]),
+            st.binary(max_size=200).map(lambda b: b.decode("latin-1")),
+            st.just({}),
+        ),
         st.tuples(st.just("GET"), query_token.map(lambda t: f"/api/session?token={quote(t)}"), st.none(), st.just({})),
         st.tuples(
             st.just("GET"),
-            st.tuples(st.sampled_from(["status", "export.csv", "participants.csv"]), st.text(max_size=20)).map(lambda x: f"/api/admin/{x[0]}?condition={quote(x[1])}"),
+            st.tuples(st.sampled_from(["status", "export.csv", "participants.csv"]), st.text(max_size=20)).map(
+                lambda x: f"/api/admin/{x[0]}?condition={quote(x[1])}"
+            ),
             st.none(),
             admin_token.map(lambda t: {"Authorization": "Bearer " + quote(t)}),
         ),
@@ -143,7 +171,12 @@ def send(srv: StudyServer, method: str, path: str, body: str | None, headers: di
             raise AssertionError(f"the live view {path} failed: {err!r}") from err
     content = None if body is None else body.encode("utf-8", "surrogatepass")
     with httpx.Client(base_url=srv.url, timeout=10) as c:
-        r = c.request(method, path, content=content, headers={"Content-Type": "application/json", **headers} if body is not None else headers)
+        r = c.request(
+            method,
+            path,
+            content=content,
+            headers={"Content-Type": "application/json", **headers} if body is not None else headers,
+        )
     if r.status_code >= 400:
         assert r.json()["error"], r.text  # every refusal is a JSON sentence
     return r.status_code

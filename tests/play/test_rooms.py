@@ -113,7 +113,13 @@ def test_a_pick_stays_hidden_until_both_have_picked(room: BanditRoom) -> None:
 
 
 def snapshot(room: BanditRoom, store: Store) -> tuple:
-    return room.version, room.step, dict(room.picks), [tuple(r) for r in store.tries(room.pair)], [tuple(r) for r in store.picks(room.pair)]
+    return (
+        room.version,
+        room.step,
+        dict(room.picks),
+        [tuple(r) for r in store.tries(room.pair)],
+        [tuple(r) for r in store.picks(room.pair)],
+    )
 
 
 @pytest.mark.parametrize(
@@ -134,7 +140,9 @@ def snapshot(room: BanditRoom, store: Store) -> tuple:
         (1, {"arm": 2, "step": 1}, 409, "you already picked arm 1 for this try"),
     ],
 )
-def test_bad_moves_are_refused_clearly_and_change_nothing(room: BanditRoom, store: Store, seat: int, payload: dict, status: int, message: str) -> None:
+def test_bad_moves_are_refused_clearly_and_change_nothing(
+    room: BanditRoom, store: Store, seat: int, payload: dict, status: int, message: str
+) -> None:
     room.move(1, {"arm": 2, "step": 0})
     room.move(2, {"arm": 2, "step": 0})  # one try stored
     room.move(1, {"arm": 1, "step": 1})  # player 1 has picked in try 2
@@ -179,7 +187,9 @@ def test_a_room_replays_from_the_database_after_a_restart(room: BanditRoom, stor
     again.restore()
     again.start()
     for seat in (1, 2):
-        assert {k: v for k, v in again.view(seat).items() if k != "version"} == {k: v for k, v in room.view(seat).items() if k != "version"}
+        assert {k: v for k, v in again.view(seat).items() if k != "version"} == {
+            k: v for k, v in room.view(seat).items() if k != "version"
+        }
     after = again.move(1, {"arm": 4, "step": 7})
     assert after["last"]["prize"] == 1.0 and after["played"] == 8  # the stored pick met its answer
     reopened.close()
@@ -211,7 +221,9 @@ def test_a_convention_agent_recognises_a_training_partners_convention_before_the
     low, high = BanditConventionPartner("low", [0, 2, 1]), BanditConventionPartner("high", [0, 3, 3])
     source = ConventionSource(models=[low, high], known=[low, high], key=bandit_context)
     pair = seat_pair(store, "agent", agent_seat=1)
-    room = BanditRoom(pair, store, source.agent(AdaptiveAgent(PRIORS["train"], greedy=True, seed=0), PRIORS["train"], seed=0), 1, PRIORS)
+    room = BanditRoom(
+        pair, store, source.agent(AdaptiveAgent(PRIORS["train"], greedy=True, seed=0), PRIORS["train"], seed=0), 1, PRIORS
+    )
     room.start()
     for i, (_, context, _) in enumerate(SCHEDULE[:15]):
         room.move(2, {"arm": high.arms["ABC".index(context)] + 1, "step": i})  # the page counts arms from 1
@@ -275,7 +287,9 @@ def test_blocks_turns_hidden_goal_and_recording(blocks_store: Store) -> None:
     for step, (seat, action) in enumerate([(1, red), (2, blue), (1, 5), (2, 5), (1, 5)]):
         room.move(seat, {"action": action, "step": step})
         assert room.view(2)["moves"][-1]["move"] == len(room.moves)  # each move shown as it happens
-    assert len(blocks_store.moves()) == 5 and blocks_rows(blocks_store) == [",".join((*BLOCKS_COLUMNS, "condition"))]  # no finished game yet
+    assert len(blocks_store.moves()) == 5 and blocks_rows(blocks_store) == [
+        ",".join((*BLOCKS_COLUMNS, "condition"))
+    ]  # no finished game yet
     after = room.move(2, {"action": 5, "step": 5})
     assert after["played"] == 1 and after["score"] == 20.0
     assert after["last"]["goal"] == room.results[0]["goal"] and after["last"]["score"] == 20.0  # revealed to P2
@@ -321,7 +335,9 @@ def test_blocks_agent_p1_moves_first_and_learns_the_persons_answer(blocks_store:
 
 
 @pytest.mark.parametrize("perm, known_from", [(TRAIN_PERMUTATIONS[1], 1), (TEST_PERMUTATIONS[0], 2)])
-def test_a_blocks_convention_agent_plans_against_the_persons_moves(tmp_path: Path, blocks_conventions: ConventionSource, perm: tuple[int, ...], known_from: int) -> None:
+def test_a_blocks_convention_agent_plans_against_the_persons_moves(
+    tmp_path: Path, blocks_conventions: ConventionSource, perm: tuple[int, ...], known_from: int
+) -> None:
     # `--adapter posterior` on blocks (not in the paper): the training partners are the 3 training
     # permutations, the heads their leaders. A person following a training permutation is met on every
     # goal from game 2 on (one answer names it); one recombining them cell by cell from game 3 on (with
@@ -333,7 +349,14 @@ def test_a_blocks_convention_agent_plans_against_the_persons_moves(tmp_path: Pat
         store = open_store(tmp_path / adapter, "blocks")  # room 1 of each: the same goals
         pair = seat_pair(store, "agent", agent_seat=1, game="blocks")
         agent = AdaptiveAgent(uniform_prior, seed=0)
-        room = BlocksRoom(pair, store, agent if adapter == "table" else blocks_conventions.agent(agent, uniform_prior, seed=0), 1, games=12, seed=0)
+        room = BlocksRoom(
+            pair,
+            store,
+            agent if adapter == "table" else blocks_conventions.agent(agent, uniform_prior, seed=0),
+            1,
+            games=12,
+            seed=0,
+        )
         room.start()
         while len(room.results) < 12:
             obs = room.env.observe("player_1")

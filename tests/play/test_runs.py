@@ -27,7 +27,10 @@ def test_a_trained_ego_gives_the_prior_and_its_seat(study_ego: Path, tmp_path: P
     settings = build_settings(study_ego, conditions="agent,human")
     agent = settings.condition("agent").agent
     assert agent.ego_seat == 1 and set(agent.priors) == {"train", "test"} and settings.game == "bandit"
-    assert agent.description.startswith("modular ego (lam 0.5) trained with bandit-user-study") and "Test task: the true marginals" in agent.description
+    assert (
+        agent.description.startswith("modular ego (lam 0.5) trained with bandit-user-study")
+        and "Test task: the true marginals" in agent.description
+    )
     two = build_settings(agents=[f"ours={study_ego}", "baseline=oracle"], conditions="ours,baseline,human")
     assert [c.kind for c in two.conditions] == ["agent", "agent", "human"]
 
@@ -39,12 +42,17 @@ def test_the_posterior_adapter_reads_the_runs_heads_and_training_partners(study_
     assert build_settings(study_ego).condition("agent").agent.conventions is None  # the paper's agent by default
     with pytest.raises(ValueError, match="--adapter posterior: --agent baseline=oracle has no training partners' heads"):
         build_settings(agents=["baseline=oracle"], adapter="posterior")
-    with pytest.raises(ValueError, match="--adapter must be one of \\['fresh', 'posterior'\\] \\(or the old spelling 'table'\\), got 'bayes'"):
+    with pytest.raises(
+        ValueError, match="--adapter must be one of \\['fresh', 'posterior'\\] \\(or the old spelling 'table'\\), got 'bayes'"
+    ):
         build_settings(study_ego, adapter="bayes")
 
 
 def test_runs_for_the_wrong_task_or_game_are_refused(study_ego: Path, tmp_path: Path) -> None:
-    with pytest.raises(ValueError, match="--test-run agent .* needs an ego trained on the user-study bandit's Test task .*bandit-user-study-newtask"):
+    with pytest.raises(
+        ValueError,
+        match="--test-run agent .* needs an ego trained on the user-study bandit's Test task .*bandit-user-study-newtask",
+    ):
         build_settings(study_ego, test_runs=[str(study_ego)])
     with pytest.raises(ValueError, match="trained on 'bandit', but --game is 'blocks'"):
         build_settings(study_ego, game="blocks")
@@ -81,7 +89,9 @@ def test_the_play_command_serves_a_trained_ego_until_ctrl_c(study_ego: Path, stu
         view = c.post("/api/move", json={"token": p["token"], "step": 0, "arm": 1}).json()
         status = c.get("/api/admin/status", headers={"Authorization": f"Bearer {ADMIN_TOKEN}"}).json()
     assert info["game"] == "bandit" and view["played"] == 1 and view["partner"] == "agent"
-    assert not [w for w in ("modular", "lam", "EgoTrainable", "bandit-user-study") if w in str(info) + str(view)]  # no internals for participants
+    assert not [
+        w for w in ("modular", "lam", "EgoTrainable", "bandit-user-study") if w in str(info) + str(view)
+    ]  # no internals for participants
     assert status["conditions"][0]["description"].startswith("modular ego (lam 0.5) trained with bandit-user-study")
     assert server.interrupt() == 130  # Ctrl-C: a graceful stop, then the usual status of an interrupt
     assert (tmp_path / "study" / "study.sqlite3").exists()

@@ -58,9 +58,19 @@ def test_pages_and_static_files_are_served_with_safe_headers(client: httpx.Clien
 def test_api_errors_are_json_sentences_with_the_right_status(client: httpx.Client) -> None:
     assert client.get("/api/info").json()["game"] == "bandit"
     cases = [
-        (client.post("/api/participants", content=b"{not json", headers={"content-type": "application/json"}), 400, "the request body must be a JSON object"),
+        (
+            client.post("/api/participants", content=b"{not json", headers={"content-type": "application/json"}),
+            400,
+            "the request body must be a JSON object",
+        ),
         (client.post("/api/participants", json=[1, 2]), 400, "must be a JSON object, got list"),
-        (client.post("/api/participants", content=b"consent=true", headers={"content-type": "application/x-www-form-urlencoded"}), 415, "must be JSON"),
+        (
+            client.post(
+                "/api/participants", content=b"consent=true", headers={"content-type": "application/x-www-form-urlencoded"}
+            ),
+            415,
+            "must be JSON",
+        ),
         (client.post("/api/participants", json={"participant": "p1"}), 400, "consent must be true"),
         (client.post("/api/participants", json={"consent": True, "participant": {"id": 1}}), 400, "participant must be an id"),
         (client.post("/api/move", json={"token": "forged", "arm": 1, "step": 0}), 403, "unknown or missing participant token"),

@@ -272,11 +272,15 @@ def test_the_export_is_the_user_study_format_and_the_report_reads_it(make, tmp_p
 
 
 @pytest.mark.parametrize("person_seat, wrapped", [(2, True), (1, False)])
-def test_a_blocks_posterior_agent_sits_only_in_the_trained_seat(make, blocks_conventions: ConventionSource, person_seat: int, wrapped: bool) -> None:
+def test_a_blocks_posterior_agent_sits_only_in_the_trained_seat(
+    make, blocks_conventions: ConventionSource, person_seat: int, wrapped: bool
+) -> None:
     # `--adapter posterior` on blocks: the heads and the plan are P1's (the trained seat); a person who
     # takes P1 gets the scripted responder, the paper's table agent, as with `--adapter table`.
     agent = AgentSettings(priors={"task": uniform_prior}, ego_seat=1, greedy=True, conventions=blocks_conventions)
-    study = make(StudySettings(game="blocks", conditions=[Condition("agent", agent, "a blocks posterior agent")], person_seat=person_seat))
+    study = make(
+        StudySettings(game="blocks", conditions=[Condition("agent", agent, "a blocks posterior agent")], person_seat=person_seat)
+    )
     participant = study.enrol("p1", True)
     room = study.rooms[participant.pair]
     assert isinstance(room.agent, ConventionAgent) is wrapped and room.agent_seat == 3 - person_seat

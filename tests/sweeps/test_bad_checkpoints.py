@@ -85,10 +85,15 @@ def test_adapt_refuses_a_trial_without_checkpoints(bandit_egos, tmp_path, capsys
 def test_population_partner_files_gone_or_damaged(bandit_egos, tmp_path, capsys) -> None:
     """A population of trained partners (here: the task module of a trained ego, sealed like `partners train` does)."""
     folder = tmp_path / "pop"
-    module = Path(shutil.copytree(last_checkpoint(bandit_egos["bandit-s2-hand"].path) / RL_MODULE_DIR / "task", folder / "partners" / "p0"))
+    module = Path(
+        shutil.copytree(last_checkpoint(bandit_egos["bandit-s2-hand"].path) / RL_MODULE_DIR / "task", folder / "partners" / "p0")
+    )
     seal(module)
     pop = partners.get("bandit-s2-hand").model_copy(update={"name": "trained"})
-    pop.partners = [e.model_copy(update={"kind": "trained_policy", "params": {"checkpoint": f"partners/p{i}"}}) for i, e in enumerate(pop.partners[:2])]
+    pop.partners = [
+        e.model_copy(update={"kind": "trained_policy", "params": {"checkpoint": f"partners/p{i}"}})
+        for i, e in enumerate(pop.partners[:2])
+    ]
     shutil.copytree(module, folder / "partners" / "p1")
     pop.save(folder / "population.json")
     assert len(partners.get(str(folder)).build()) == 2  # intact, it loads

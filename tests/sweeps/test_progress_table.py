@@ -17,8 +17,15 @@ def _trial(trial_id, status, params, result):
 
 def test_table_rows_hold_swept_values_and_latest_metrics() -> None:
     trials = [
-        _trial("x_0", "RUNNING", {"lam": 0.5, "model/z_dim": 5}, {"training_iteration": 3, "env_steps": 768, "return_mean": 0.91234}),
-        _trial("x_1", "TERMINATED", {"lam": 0.0, "model/z_dim": 30}, {"training_iteration": 40, "env_steps": 10240, "return_mean": 1.0}),
+        _trial(
+            "x_0", "RUNNING", {"lam": 0.5, "model/z_dim": 5}, {"training_iteration": 3, "env_steps": 768, "return_mean": 0.91234}
+        ),
+        _trial(
+            "x_1",
+            "TERMINATED",
+            {"lam": 0.0, "model/z_dim": 30},
+            {"training_iteration": 40, "env_steps": 10240, "return_mean": 1.0},
+        ),
         _trial("x_2", "PENDING", {"lam": 0.3, "model/z_dim": 30}, {}),
     ]
     lines = ProgressTable().table(trials).splitlines()
@@ -54,7 +61,9 @@ def test_a_stage_whose_trials_may_stop_early_prints_bounds_and_why(monkeypatch) 
     # trial-second; pair b has 900 left: at most 60 s. Once both have stopped nothing is left, and the line says so plainly.
     now = [0.0]
     monkeypatch.setattr(callbacks.time, "monotonic", lambda: now[0])
-    progress = callbacks.StageProgress("[hanabi] self-play", every=1e9, log=lambda line: None, stops_early="a pair stops when it passes the gate")
+    progress = callbacks.StageProgress(
+        "[hanabi] self-play", every=1e9, log=lambda line: None, stops_early="a pair stops when it passes the gate"
+    )
     trials = [_trial("a", "RUNNING", {}, {}), _trial("b", "RUNNING", {}, {})]
     now[0] = 10.0
     progress.on_trial_result(1, trials, trials[0], {STEPS_DONE: 200, STEPS_TOTAL: 1000})
@@ -109,7 +118,9 @@ def test_stage_total_counts_waiting_trials_by_their_units(monkeypatch) -> None:
     assert progress.line(trials).startswith("[blocks] train: 0/4 trials done, 2.0k/15.0k env steps")
     for t in trials[:2]:
         t.last_result = {STEPS_DONE: 1000, STEPS_TOTAL: 5000}
-    assert callbacks.StageProgress("[blocks] train").line(trials).startswith("[blocks] train: 0/4 trials done, 2.0k/20.0k env steps")
+    assert (
+        callbacks.StageProgress("[blocks] train").line(trials).startswith("[blocks] train: 0/4 trials done, 2.0k/20.0k env steps")
+    )
 
 
 def test_a_stage_counts_units_in_its_trials_jobs_and_its_progress_pickles_with_tunes_state() -> None:

@@ -16,7 +16,18 @@ if __name__ == "__main__":
     try:
         cluster.add_node(num_cpus=2, resources={"second_node": 2})
         cluster.wait_for_nodes()
-        cmd = [sys.executable, "-m", "rllib_conv.cli", "sweep", config, "--storage", storage, "--address", cluster.address, *extra]
+        cmd = [
+            sys.executable,
+            "-m",
+            "rllib_conv.cli",
+            "sweep",
+            config,
+            "--storage",
+            storage,
+            "--address",
+            cluster.address,
+            *extra,
+        ]
         status = subprocess.run(cmd).returncode
     finally:
         cluster.shutdown()

@@ -35,7 +35,15 @@ from rllib_conv.training.lean_env_runner import LeanEnvRunner
 
 COLUMNS = (Columns.ACTIONS, Columns.ACTION_LOGP, Postprocessing.ADVANTAGES, Postprocessing.VALUE_TARGETS)
 # What the env runners report per iteration that the two paths must agree on.
-METRICS = ("num_env_steps_sampled", "num_episodes", "episode_return_mean", "episode_len_mean", "agent_episode_returns_mean", "module_episode_returns_mean", "num_module_steps_sampled")
+METRICS = (
+    "num_env_steps_sampled",
+    "num_episodes",
+    "episode_return_mean",
+    "episode_len_mean",
+    "agent_episode_returns_mean",
+    "module_episode_returns_mean",
+    "num_module_steps_sampled",
+)
 
 
 def _runner(config, batched: bool):
@@ -45,7 +53,10 @@ def _runner(config, batched: bool):
 
 def _algorithm(batched: bool, population: str = "bandit-s2-hand", seeds: tuple[int, ...] = (3, 8), **run):
     ppo = {} if population.startswith("bandit") else {"rollout_per_partner": 100, "minibatch_size": 50}
-    replicas = [Replica(resolve(ExperimentConfig(population=population, lam=0.5, seed=s, model={"hidden": 8}, ppo=ppo, run=run))) for s in seeds]
+    replicas = [
+        Replica(resolve(ExperimentConfig(population=population, lam=0.5, seed=s, model={"hidden": 8}, ppo=ppo, run=run)))
+        for s in seeds
+    ]
     return _runner(build_ppo_config(replicas), batched).build_algo()
 
 
@@ -77,7 +88,9 @@ def test_batched_sampling_gives_rllibs_batches_weights_and_metrics(ray_session, 
                 for key in ("observations", "action_mask"):
                     assert torch.equal(torch.as_tensor(mine[Columns.OBS][key]), torch.as_tensor(rl[Columns.OBS][key])), (mid, key)
                 for col in COLUMNS:
-                    assert torch.equal(torch.as_tensor(mine[col]), torch.as_tensor(rl[col]).to(torch.as_tensor(mine[col]).dtype)), (mid, col)
+                    assert torch.equal(
+                        torch.as_tensor(mine[col]), torch.as_tensor(rl[col]).to(torch.as_tensor(mine[col]).dtype)
+                    ), (mid, col)
     finally:
         rllib.stop()
         batched.stop()

@@ -70,5 +70,8 @@ def test_seven_adaptation_packs_of_thirty_curves_on_two_cores() -> None:
     # Cut at 105 a core, one pack splits in halves of 15; the curves are no seeds, so no "seed" key is set.
     packs = [{"index": i, "curves": [f"c{i}-{k}" for k in range(30)]} for i in range(7)]
     out = spread_over_cores(packs, "curves", cpus=2)
-    assert [len(p["curves"]) for p in out] == [30] * 6 + [15, 15] and (_wall(packs, 2, "curves"), _wall(out, 2, "curves")) == (120, 105)
+    assert [len(p["curves"]) for p in out] == [30] * 6 + [15, 15] and (_wall(packs, 2, "curves"), _wall(out, 2, "curves")) == (
+        120,
+        105,
+    )
     assert [p["index"] for p in out if len(p["curves"]) == 15] == [3, 3] and all("seed" not in p for p in out)

@@ -68,7 +68,11 @@ def _episode(rng, learner, steps: int, ends: str, early_agent: bool, rollout: Ro
         terms["__all__"] = last and ends == "terminated"
         truncs["__all__"] = last and ends == "truncated"
         episode.add_env_step(
-            observations=obs, actions=actions, rewards=rewards, terminateds=terms, truncateds=truncs,
+            observations=obs,
+            actions=actions,
+            rewards=rewards,
+            terminateds=terms,
+            truncateds=truncs,
             extra_model_outputs={a: {Columns.ACTION_LOGP: logp[a]} for a in acting},
         )
         ours.record(actions, logp, obs, rewards, terms, truncs)
@@ -93,9 +97,13 @@ def test_rollout_batch_equals_the_learner_connectors(seed: int) -> None:
         mine, rllib = ours.policy_batches[mid], theirs.policy_batches[mid]
         assert len(mine) == len(rllib) == len(rollout.modules[mid].actions)
         for key in ("observations", "action_mask"):
-            torch.testing.assert_close(torch.as_tensor(mine[Columns.OBS][key]), torch.as_tensor(rllib[Columns.OBS][key]), rtol=0, atol=0)
+            torch.testing.assert_close(
+                torch.as_tensor(mine[Columns.OBS][key]), torch.as_tensor(rllib[Columns.OBS][key]), rtol=0, atol=0
+            )
         for col in COLUMNS:
-            torch.testing.assert_close(torch.as_tensor(mine[col]), torch.as_tensor(rllib[col]), rtol=0, atol=0, check_dtype=False, msg=f"{mid} {col}")
+            torch.testing.assert_close(
+                torch.as_tensor(mine[col]), torch.as_tensor(rllib[col]), rtol=0, atol=0, check_dtype=False, msg=f"{mid} {col}"
+            )
     assert ours.env_steps() == sum(steps for steps, _, _ in plans)
     # Standardized over real and bootstrap rows together: the real rows alone are near, not at, unit spread.
     advantages = np.asarray(ours.policy_batches[replica_id("ego@hand-train-0", 0)][Postprocessing.ADVANTAGES])

@@ -52,9 +52,21 @@ def adaptation_claims(ctx: Context, auc: pd.DataFrame) -> list[ClaimCheck]:
         missing = tuple(population_name(x) for x in named if x not in present)
         # Different populations share no test partners: their seed means are compared unpaired (Welch).
         seeds = {x: ours.loc[ours["population"] == x, "auc"] for x in present}
-        diffs = [Difference(population_name(x), population_name(y), *unpaired_difference(seeds[x], seeds[y])) for x, y in zip(present, present[1:])]
+        diffs = [
+            Difference(population_name(x), population_name(y), *unpaired_difference(seeds[x], seeds[y]))
+            for x, y in zip(present, present[1:])
+        ]
         verdict = all_hold((d.verdict for d in diffs), missing)
-        checks.append(ClaimCheck(claims["fewer-symmetries-easier"], f"ours λ=0.5, {kind} partners", verdict, "AUC " + "; ".join(d.text() for d in diffs), "bandit", missing))
+        checks.append(
+            ClaimCheck(
+                claims["fewer-symmetries-easier"],
+                f"ours λ=0.5, {kind} partners",
+                verdict,
+                "AUC " + "; ".join(d.text() for d in diffs),
+                "bandit",
+                missing,
+            )
+        )
     return checks
 
 
@@ -67,8 +79,31 @@ def summary_table(auc: pd.DataFrame) -> str:
         d, key = digits(game), (game, population, label)
         cells = [fmt_summary(s.loc[key], d) for s in (start, end, area)]
         source = "exact" if g["value_source"].iloc[0] == "exact_return" else "episodes"
-        rows.append([population_name(population), label_name(label), g["points"].iloc[0], int(g["last_step"].max()), g["partner"].nunique(), *cells, source])
-    return md_table(["population", "method", "points", "last step", "test partners", "return at step 0", "return at last step", "AUC", "return"], rows)
+        rows.append(
+            [
+                population_name(population),
+                label_name(label),
+                g["points"].iloc[0],
+                int(g["last_step"].max()),
+                g["partner"].nunique(),
+                *cells,
+                source,
+            ]
+        )
+    return md_table(
+        [
+            "population",
+            "method",
+            "points",
+            "last step",
+            "test partners",
+            "return at step 0",
+            "return at last step",
+            "AUC",
+            "return",
+        ],
+        rows,
+    )
 
 
 def released_code_table(auc: pd.DataFrame) -> list[str]:
@@ -77,7 +112,11 @@ def released_code_table(auc: pd.DataFrame) -> list[str]:
     ref = auc[auc["population"] == ref_pop]
     if ref.empty:
         return []
-    lines = ["", f"#### {population_name(ref_pop)} beside the authors' released code (measured by this project, docs/differences.md; adaptation to step 240)", ""]
+    lines = [
+        "",
+        f"#### {population_name(ref_pop)} beside the authors' released code (measured by this project, docs/differences.md; adaptation to step 240)",
+        "",
+    ]
     rows = []
     for label, (start, end) in paper.RELEASED_CODE_ADAPTATION.items():
         g = ref[ref["label"] == label]
@@ -87,11 +126,42 @@ def released_code_table(auc: pd.DataFrame) -> list[str]:
         last = int(g["last_step"].max())
         what = f"{population_name(ref_pop)} {label_name(label)}"
         s0, s1 = (seed_summary(g, ["label"], column).iloc[0] for column in ("start", "end"))
-        c0 = Comparison("adaptation (released code)", f"{what}, step 0", start.value, start.source, s0["mean"], s0["lo"], s0["hi"], int(s0["n"]))
-        c1 = Comparison("adaptation (released code)", f"{what}, step {last}", end.value, end.source, s1["mean"], s1["lo"], s1["hi"], int(s1["n"]))
+        c0 = Comparison(
+            "adaptation (released code)",
+            f"{what}, step 0",
+            start.value,
+            start.source,
+            s0["mean"],
+            s0["lo"],
+            s0["hi"],
+            int(s0["n"]),
+        )
+        c1 = Comparison(
+            "adaptation (released code)",
+            f"{what}, step {last}",
+            end.value,
+            end.source,
+            s1["mean"],
+            s1["lo"],
+            s1["hi"],
+            int(s1["n"]),
+        )
         note = "" if last == 240 else f"our last step is {last}, the reference's 240"
-        rows.append([label_name(label), f"{start.value:g}", c0.row()[2], f"{end.value:g}" + (f" ({end.note})" if end.note else ""), c1.row()[2], "; ".join(x for x in (c0.verdict, c1.verdict, note) if x)])
-    return lines + [md_table(["method", "released code, step 0", "ours, step 0", "released code, step 240", "ours, last step", "verdict"], rows)]
+        rows.append(
+            [
+                label_name(label),
+                f"{start.value:g}",
+                c0.row()[2],
+                f"{end.value:g}" + (f" ({end.note})" if end.note else ""),
+                c1.row()[2],
+                "; ".join(x for x in (c0.verdict, c1.verdict, note) if x),
+            ]
+        )
+    return lines + [
+        md_table(
+            ["method", "released code, step 0", "ours, step 0", "released code, step 240", "ours, last step", "verdict"], rows
+        )
+    ]
 
 
 def adaptation_section(ctx: Context) -> str:
@@ -121,19 +191,27 @@ def adaptation_section(ctx: Context) -> str:
         titles = {p.population: p.title for p in spec.panels}
         part = ctx.adaptation[ctx.adaptation["population"].isin(present)]
         fig = figures.adaptation_curves(ctx.adaptation, panels=present, titles=titles)
-        lines += ["", ctx.save(fig, spec.key.replace("fig:", "adapt_"), figures.band_caption(part, "Lines: mean over seeds; bands"))]
+        lines += [
+            "",
+            ctx.save(fig, spec.key.replace("fig:", "adapt_"), figures.band_caption(part, "Lines: mean over seeds; bands")),
+        ]
     others = sorted(set(ctx.adaptation["population"]) - shown)
     if others:
         part = ctx.adaptation[ctx.adaptation["population"].isin(others)]
         fig = figures.adaptation_curves(ctx.adaptation, panels=others)
-        lines += ["", f"### Other populations ({', '.join(others)})", "", ctx.save(fig, "adapt_other", figures.band_caption(part, "Lines: mean over seeds; bands"))]
+        lines += [
+            "",
+            f"### Other populations ({', '.join(others)})",
+            "",
+            ctx.save(fig, "adapt_other", figures.band_caption(part, "Lines: mean over seeds; bands")),
+        ]
     lines += ["", "### Adaptation summary", "", summary_table(auc)]
     lines += released_code_table(auc)
 
     checks = adaptation_claims(ctx, auc)
     ctx.claims += checks
     rule = (
-        f"Checked on the paper's own method ({label_name(PAPER_METHOD)}) alone. A claim \"A adapts faster than B\" is judged "
+        f'Checked on the paper\'s own method ({label_name(PAPER_METHOD)}) alone. A claim "A adapts faster than B" is judged '
         "on the paired AUC difference A − B over the (seed, test partner) units both share, averaged per seed, with its 95% "
         "t-interval over seeds: supported when the whole interval is above 0, contradicted when it is below 0, not shown "
         "otherwise (or with one seed). A claim over several methods needs every one it names: with one missing it is not shown "

@@ -55,13 +55,17 @@ def _target(ctx: Context, population: str, auc: pd.DataFrame, label: str) -> tup
     labels = set(auc["label"])
     symmetric = symmetric_contexts(population)
     if symmetric is not None:
-        gap = bayes_gap(ctx.adaptation[(ctx.adaptation["population"] == population) & (ctx.adaptation["label"] == label)], symmetric, label)
+        gap = bayes_gap(
+            ctx.adaptation[(ctx.adaptation["population"] == population) & (ctx.adaptation["label"] == label)], symmetric, label
+        )
         return f"AUC within {BAYES_MARGIN} of the Bayes-optimal adapter", no_worse(gap, BAYES_MARGIN), gap.text(places)
     if population == "bandit-user-study":
         found = beats_every(auc, label, sorted(labels - set(BEYOND)), "auc", WITHIN, places)
         return "above every method", found.cell, found.evidence
     if game == "blocks" and "selfplay" in population:
-        found = beats_every(auc, label, ("agg", "maml"), "auc", WITHIN, places)  # both named: one missing is not shown (missing: ...)
+        found = beats_every(
+            auc, label, ("agg", "maml"), "auc", WITHIN, places
+        )  # both named: one missing is not shown (missing: ...)
         return "above BaselineAgg and First-Order MAML", found.cell, found.evidence
     if game == "blocks":
         diff, margin = advantage(auc, label, PAPER_METHOD, "auc", WITHIN), no_worse_margin(ctx.plans.get(game, {"game": game}))
@@ -95,7 +99,9 @@ def beyond_section(ctx: Context) -> str:
             f"`{GUARDED}` is the same adapter with its fine-tuning guarded: the ego is evaluated as it was before any update "
             f"until the adapting one is measured better on its own training rollouts (`{adapters.adapter(adapters.GUARD).module}`).",
         ]
-    data = ctx.adaptation[ctx.adaptation["population"].isin(ctx.adaptation.loc[ctx.adaptation["label"].isin(present), "population"].unique())]
+    data = ctx.adaptation[
+        ctx.adaptation["population"].isin(ctx.adaptation.loc[ctx.adaptation["label"].isin(present), "population"].unique())
+    ]
     auc = adaptation_auc(data)
     shown = data[data["label"].isin([*present, *SHOWN_BESIDE])]
     populations = sorted(shown["population"].unique())
@@ -109,7 +115,14 @@ def beyond_section(ctx: Context) -> str:
         d = digits(ctx.game_of_population(population))
         for label in [*present, *SHOWN_BESIDE]:
             if (population, label) in area.index:
-                rows.append([population_name(population), label_name(label), fmt_summary(start.loc[(population, label)], d), fmt_summary(area.loc[(population, label)], d)])
+                rows.append(
+                    [
+                        population_name(population),
+                        label_name(label),
+                        fmt_summary(start.loc[(population, label)], d),
+                        fmt_summary(area.loc[(population, label)], d),
+                    ]
+                )
     lines += ["", md_table(["population", "method", "return at step 0", "AUC"], rows)]
 
     targets = []

@@ -22,14 +22,21 @@ def differences_section(ctx: Context) -> str:
     if differ:
         lines += ["", "### Numbers that differ", ""]
         for c in differ:
-            why = "; ".join(c.reasons) if c.reasons else "no cause visible in the data (the run looks converged and has an interval)"
+            why = (
+                "; ".join(c.reasons)
+                if c.reasons
+                else "no cause visible in the data (the run looks converged and has an interval)"
+            )
             lines.append(
                 f"- **{c.section}: {c.what}**: paper {c.paper_value:g} ({c.paper_source}); ours {fmt_ci(c.mean, c.lo, c.hi, c.n, c.digits)}, "
                 f"{c.direction}. Why: {why}."
             )
     contradicted = [c for c in ctx.claims if c.verdict == CONTRADICTED]
     not_shown = [c for c in ctx.claims if c.verdict == NOT_SHOWN]
-    titles = ("Claims our data contradict", "Claims our data do not show (an interval that contains 0, one seed, or data missing)")
+    titles = (
+        "Claims our data contradict",
+        "Claims our data do not show (an interval that contains 0, one seed, or data missing)",
+    )
     for title, checks in zip(titles, (contradicted, not_shown)):
         if checks:
             lines += ["", f"### {title}", ""]

@@ -37,16 +37,37 @@ def marginals_section(ctx: Context) -> str:
     for r in summary.itertuples():
         r_all = summary_all[(summary_all["population"] == r.population) & (summary_all["label"] == r.label)].iloc[0]
         ours = fmt_ci(r.mean, r.lo, r.hi, r.n)
-        paper_vals = {s: paper.MARGINALS[(r.population, s)] for s, lab in paper.MARGINAL_SERIES.items() if lab == r.label and (r.population, s) in paper.MARGINALS}
+        paper_vals = {
+            s: paper.MARGINALS[(r.population, s)]
+            for s, lab in paper.MARGINAL_SERIES.items()
+            if lab == r.label and (r.population, s) in paper.MARGINALS
+        }
         if not paper_vals and r.label in ("agg", "maml"):
             paper_vals = {s: paper.MARGINALS[(r.population, s)] for s in ("L5", "L6") if (r.population, s) in paper.MARGINALS}
         if not paper_vals:
-            rows.append([population_name(r.population), label_name(r.label), "—", ours, fmt_ci(r_all["mean"], r_all["lo"], r_all["hi"], r_all["n"]), "no paper number"])
+            rows.append(
+                [
+                    population_name(r.population),
+                    label_name(r.label),
+                    "—",
+                    ours,
+                    fmt_ci(r_all["mean"], r_all["lo"], r_all["hi"], r_all["n"]),
+                    "no paper number",
+                ]
+            )
             continue
         # With two candidate baseline bars, compare with the nearer one (the assignment is unknown).
         series, pn = min(paper_vals.items(), key=lambda kv: abs(kv[1].value - r.mean))
         c = Comparison(
-            "marginals", f"{population_name(r.population)}, {label_name(r.label)}", pn.value, f"{pn.source} ({series}: {pn.note})", r.mean, r.lo, r.hi, r.n, higher_is_better=False
+            "marginals",
+            f"{population_name(r.population)}, {label_name(r.label)}",
+            pn.value,
+            f"{pn.source} ({series}: {pn.note})",
+            r.mean,
+            r.lo,
+            r.hi,
+            r.n,
+            higher_is_better=False,
         )
         if c.differs:
             c.reasons = ctx.reasons(r.game, r.population, r.label, r.n)
@@ -54,16 +75,33 @@ def marginals_section(ctx: Context) -> str:
                 c.reasons.append(f"the paper's bar {series} is identified by inference only ({pn.note})")
         ctx.comparisons.append(c)
         paper_text = " or ".join(f"{v.value:g} ({s})" for s, v in paper_vals.items())
-        rows.append([population_name(r.population), label_name(r.label), paper_text, ours, fmt_ci(r_all["mean"], r_all["lo"], r_all["hi"], r_all["n"]), c.verdict])
+        rows.append(
+            [
+                population_name(r.population),
+                label_name(r.label),
+                paper_text,
+                ours,
+                fmt_ci(r_all["mean"], r_all["lo"], r_all["hi"], r_all["n"]),
+                c.verdict,
+            ]
+        )
     lines.append(md_table(["population", "method", "paper", "ours", "ours, all states", "verdict"], rows))
     ran = set(zip(summary["population"], summary["label"]))
     missing = sorted(
-        {f"{population_name(p)} {label_name(lab)}" for (p, s) in paper.MARGINALS for lab in [paper.MARGINAL_SERIES[s]] if lab and (p, lab) not in ran and p.split("-")[0] in ctx.plans}
+        {
+            f"{population_name(p)} {label_name(lab)}"
+            for (p, s) in paper.MARGINALS
+            for lab in [paper.MARGINAL_SERIES[s]]
+            if lab and (p, lab) not in ran and p.split("-")[0] in ctx.plans
+        }
     )
     if missing:
         lines += ["", f"Paper bars without a result of ours: {', '.join(missing)}."]
     markers = {(p, lab): v.value for (p, s), v in paper.MARGINALS.items() for lab in [paper.MARGINAL_SERIES[s]] if lab}
-    caption = figures.band_caption(ctx.marginals, "Bars: mean over seeds (values printed on them); error bars", averaged=None) + " Crosses: the paper's bars."
+    caption = (
+        figures.band_caption(ctx.marginals, "Bars: mean over seeds (values printed on them); error bars", averaged=None)
+        + " Crosses: the paper's bars."
+    )
     lines += ["", ctx.save(figures.marginal_bars(ctx.marginals, markers), "marginals", caption)]
     checks = []
     claims = {c.key: c for c in paper.MARGINAL_CLAIMS}
@@ -82,10 +120,19 @@ def marginals_section(ctx: Context) -> str:
             checks.append(ClaimCheck(claims["lam0-below-baselines"], scope, verdict, "distance " + evidence, game))
     ctx.claims += checks
     rule = (
-        "A claim \"A is closer to the true marginals than B\" is judged on the paired difference of distances B − A over the "
+        'A claim "A is closer to the true marginals than B" is judged on the paired difference of distances B − A over the '
         "seeds both share, with its 95% t-interval over seeds: supported when the whole interval is above 0, contradicted when "
         "it is below 0, not shown otherwise (or with one seed). λ=0.3 and the other variants are in a table of their own."
     )
     lines += claims_block("the marginals", paper.MARGINAL_CLAIMS, checks, rule)
-    lines += variants_block(ctx.marginals, "distance", (), CLAIMED, MARGINAL_BASELINES, "closer to the true marginals than every baseline?", lower_is_better=True, places=3)
+    lines += variants_block(
+        ctx.marginals,
+        "distance",
+        (),
+        CLAIMED,
+        MARGINAL_BASELINES,
+        "closer to the true marginals than every baseline?",
+        lower_is_better=True,
+        places=3,
+    )
     return "\n".join(lines)

@@ -20,11 +20,38 @@ def selfplay_section(ctx: Context) -> str:
         for (game, population, split), g in ctx.selfplay.groupby(["game", "population", "split"]):
             pn = paper.SELFPLAY_PARTNERS.get(game, {}).get(split)
             passed = int(g["passed"].sum())
-            note = "" if pn is None else ("as in the paper" if passed == pn.value else f"**differs** from the paper's {pn.value:g}")
-            rows.append([population, split, len(g), passed, f"{pn.value:g}" if pn else "—", fmt_ci(*mean_ci(g["steps_to_gate"].astype(float)), 0), note])
+            note = (
+                "" if pn is None else ("as in the paper" if passed == pn.value else f"**differs** from the paper's {pn.value:g}")
+            )
+            rows.append(
+                [
+                    population,
+                    split,
+                    len(g),
+                    passed,
+                    f"{pn.value:g}" if pn else "—",
+                    fmt_ci(*mean_ci(g["steps_to_gate"].astype(float)), 0),
+                    note,
+                ]
+            )
             if pn is not None and passed != pn.value:
-                ctx.notes.append(f"self-play {population} ({split}): {passed} partners passed the gate, the paper used {pn.value:g}")
-        lines.append(md_table(["population", "split", "pairs trained", "passed the gate", "paper's partner count", "env steps to the gate", "note"], rows))
+                ctx.notes.append(
+                    f"self-play {population} ({split}): {passed} partners passed the gate, the paper used {pn.value:g}"
+                )
+        lines.append(
+            md_table(
+                [
+                    "population",
+                    "split",
+                    "pairs trained",
+                    "passed the gate",
+                    "paper's partner count",
+                    "env steps to the gate",
+                    "note",
+                ],
+                rows,
+            )
+        )
         lines += ["", ctx.save(figures.selfplay_heatmap(ctx.selfplay), "selfplay")]
     for stem, matrix in ctx.crossplay.items():
         values = matrix.to_numpy(dtype=float)

@@ -25,7 +25,9 @@ def trained_steps(curves: pd.DataFrame) -> str:
 def status_section(ctx: Context) -> str:
     lines = ["## What was found", ""]
     if not ctx.games:
-        lines.append(f"No game folder (plan.json, runs/, adaptation/, ...) under `{ctx.root}`: nothing to report but the user study.")
+        lines.append(
+            f"No game folder (plan.json, runs/, adaptation/, ...) under `{ctx.root}`: nothing to report but the user study."
+        )
         return "\n".join(lines)
     rows = []
     for game_dir in ctx.games:
@@ -36,14 +38,43 @@ def status_section(ctx: Context) -> str:
         missing = [r.stage for r in st.itertuples() if r.expected and not r.done]
         curves = ctx.training[ctx.training["game"] == game] if not ctx.training.empty else ctx.training
         trials = curves["run"].nunique() if not curves.empty else 0
-        rows.append([game, f"`{game_dir}`", plan.get("seeds", "?"), "yes" if plan.get("quick") else "no", ", ".join(done) or "none", ", ".join(missing) or "none", trials, trained_steps(curves)])
+        rows.append(
+            [
+                game,
+                f"`{game_dir}`",
+                plan.get("seeds", "?"),
+                "yes" if plan.get("quick") else "no",
+                ", ".join(done) or "none",
+                ", ".join(missing) or "none",
+                trials,
+                trained_steps(curves),
+            ]
+        )
         if missing:
             ctx.notes.append(f"{game}: stage(s) not finished: {', '.join(missing)} (their results are partial or absent below)")
-    lines.append(md_table(["game", "folder", "seeds", "quick", "stages done (wall time, all runs on the folder)", "stages not done", "trained-ego trials with logs", "env steps per ego"], rows))
+    lines.append(
+        md_table(
+            [
+                "game",
+                "folder",
+                "seeds",
+                "quick",
+                "stages done (wall time, all runs on the folder)",
+                "stages not done",
+                "trained-ego trials with logs",
+                "env steps per ego",
+            ],
+            rows,
+        )
+    )
     for game in loaders.MAX_SCORE:
         if game not in ctx.plans:
             ctx.notes.append(f"{game}: no folder under the root; its figures and numbers are skipped")
-    labels = {lab for frame in (ctx.training, ctx.adaptation, ctx.zeroshot, ctx.marginals) if not frame.empty for lab in frame["label"]}
+    labels = {
+        lab for frame in (ctx.training, ctx.adaptation, ctx.zeroshot, ctx.marginals) if not frame.empty for lab in frame["label"]
+    }
     for label in sorted(labels & set(EXTENSIONS)):
-        ctx.notes.append(f"{label_name(label)} (`{label}`) is not in the paper: it is listed in the tables without a paper number and left out of the paper's claims")
+        ctx.notes.append(
+            f"{label_name(label)} (`{label}`) is not in the paper: it is listed in the tables without a paper number and left out of the paper's claims"
+        )
     return "\n".join(lines)

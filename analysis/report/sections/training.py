@@ -21,10 +21,20 @@ def training_section(ctx: Context) -> str:
     rows = []
     for r in ctx.train_summary.itertuples():
         top = loaders.max_score(ctx.plans.get(r.game, {"game": r.game}))
-        rows.append([r.game, population_name(r.population), label_name(r.label), fmt_ci(r.mean, r.lo, r.hi, r.n, digits(r.game)), f"{top:g}"])
+        rows.append(
+            [
+                r.game,
+                population_name(r.population),
+                label_name(r.label),
+                fmt_ci(r.mean, r.lo, r.hi, r.n, digits(r.game)),
+                f"{top:g}",
+            ]
+        )
     lines.append(md_table(["game", "population", "method", "final training return", "max"], rows))
     for game in sorted(ctx.training["game"].unique()):
         part = ctx.training[ctx.training["game"] == game]
-        caption = figures.band_caption(part, "Lines: return_mean against training env steps, mean over seeds; bands", averaged=None)
+        caption = figures.band_caption(
+            part, "Lines: return_mean against training env steps, mean over seeds; bands", averaged=None
+        )
         lines += ["", f"Training curves, {game}:", "", ctx.save(figures.training_curves(part), f"training_{game}", caption)]
     return "\n".join(lines)

@@ -38,7 +38,9 @@ def user_study_section(ctx: Context) -> str:
         same_table = abs(t.score - pn.value) <= tol_v and abs(t.sem - err) <= tol_e
         same_recipe = abs(r.score - pn.value) <= tol_v and abs(r.sem - err) <= tol_e
         if not same_table:
-            differ.append(f"{t.task.capitalize()}-{t.context}: table {t.coordinated}/{t.n} = {t.score:.3f} ± {t.sem:.3f}, figure {pn.value:g} ± {pn.error:g}")
+            differ.append(
+                f"{t.task.capitalize()}-{t.context}: table {t.coordinated}/{t.n} = {t.score:.3f} ± {t.sem:.3f}, figure {pn.value:g} ± {pn.error:g}"
+            )
         rows.append(
             [
                 f"{t.task.capitalize()}-{t.context}",
@@ -49,7 +51,19 @@ def user_study_section(ctx: Context) -> str:
                 "yes" if same_recipe else "no",
             ]
         )
-    lines.append(md_table(["bar", "ours: from the table", "paper's figure", "table under the figure's recipe", "table = figure?", "recipe = figure?"], rows))
+    lines.append(
+        md_table(
+            [
+                "bar",
+                "ours: from the table",
+                "paper's figure",
+                "table under the figure's recipe",
+                "table = figure?",
+                "recipe = figure?",
+            ],
+            rows,
+        )
+    )
     all_match = all(r[-1] == "yes" for r in rows)
     lines += [
         "",
@@ -63,32 +77,54 @@ def user_study_section(ctx: Context) -> str:
         ),
     ]
     if differ:
-        ctx.notes.append("user study: the numbers computed from the appendix table differ from the paper's figure in " + "; ".join(differ) + f" (the figure follows from the table with: {paper.USER_STUDY_FIGURE_RECIPE})")
+        ctx.notes.append(
+            "user study: the numbers computed from the appendix table differ from the paper's figure in "
+            + "; ".join(differ)
+            + f" (the figure follows from the table with: {paper.USER_STUDY_FIGURE_RECIPE})"
+        )
     claims = {c.key: c for c in paper.USER_STUDY_CLAIMS}
     s = table.set_index(["task", "context"])
 
     c_over_b = cell_difference(study, ("test", "C"), ("test", "B"))
     a_over_bc = [cell_difference(study, ("train", "A"), ("train", other)) for other in ("B", "C")]
     checks = [
-        ClaimCheck(claims["test-c-above-test-b"], "appendix table, first try", c_over_b.verdict, f"Test-C {s.loc[('test', 'C'), 'score']:.3f}, Test-B {s.loc[('test', 'B'), 'score']:.3f}; {c_over_b.text()}"),
+        ClaimCheck(
+            claims["test-c-above-test-b"],
+            "appendix table, first try",
+            c_over_b.verdict,
+            f"Test-C {s.loc[('test', 'C'), 'score']:.3f}, Test-B {s.loc[('test', 'B'), 'score']:.3f}; {c_over_b.text()}",
+        ),
         ClaimCheck(
             claims["train-a-easy"],
             "appendix table, first try",
             all_hold(d.verdict for d in a_over_bc),
-            ", ".join(f"Train-{c} {s.loc[('train', c), 'score']:.3f}" for c in "ABC") + "; " + "; ".join(d.text() for d in a_over_bc),
+            ", ".join(f"Train-{c} {s.loc[('train', c), 'score']:.3f}" for c in "ABC")
+            + "; "
+            + "; ".join(d.text() for d in a_over_bc),
         ),
     ]
     ctx.claims += checks
     lines += [
         "",
-        "Every pair played every context, so a claim \"cell X scores higher than cell Y\" is judged on the paired difference "
+        'Every pair played every context, so a claim "cell X scores higher than cell Y" is judged on the paired difference '
         "X − Y of first-try coordination over the pairs (the study's replicated unit), with its 95% t-interval: supported when "
         "the whole interval is above 0, contradicted when it is below 0, not shown otherwise.",
         "",
         md_table(["claim", "verdict", "evidence"], [[c.claim.text, c.verdict, c.evidence] for c in checks]),
     ]
-    fig = figures.user_study_bars(table, {k: v.value for k, v in paper.USER_STUDY_FIGURE.items()}, "user study (appendix table, 23 pairs); crosses: paper's figure")
-    lines += ["", ctx.save(fig, "userstudy", f"Error bars: one standard error of the share over the pairs (n = {n_pairs} pairs), as in the paper's figure.")]
+    fig = figures.user_study_bars(
+        table,
+        {k: v.value for k, v in paper.USER_STUDY_FIGURE.items()},
+        "user study (appendix table, 23 pairs); crosses: paper's figure",
+    )
+    lines += [
+        "",
+        ctx.save(
+            fig,
+            "userstudy",
+            f"Error bars: one standard error of the share over the pairs (n = {n_pairs} pairs), as in the paper's figure.",
+        ),
+    ]
     if ctx.live_study_paths:
         try:
             live = loaders.load_user_study_csvs(ctx.live_study_paths)
@@ -103,10 +139,20 @@ def user_study_section(ctx: Context) -> str:
             "",
             f"### Recorded sessions ({live['pair_id'].nunique()} pairs in {live['source'].nunique()} file(s))",
             "",
-            md_table(["bar", "first try", "n"], [[f"{r.task.capitalize()}-{r.context}", f"{r.coordinated}/{r.n} = {r.score:.3f} ± {r.sem:.3f}", r.n] for r in ls.itertuples()]),
+            md_table(
+                ["bar", "first try", "n"],
+                [
+                    [f"{r.task.capitalize()}-{r.context}", f"{r.coordinated}/{r.n} = {r.score:.3f} ± {r.sem:.3f}", r.n]
+                    for r in ls.itertuples()
+                ],
+            ),
             "",
             ctx.save(
-                figures.user_study_bars(ls, {(r.task, r.context): r.score for r in table.itertuples()}, "recorded sessions; crosses: the paper's table"),
+                figures.user_study_bars(
+                    ls,
+                    {(r.task, r.context): r.score for r in table.itertuples()},
+                    "recorded sessions; crosses: the paper's table",
+                ),
                 "userstudy_live",
                 f"Error bars: one standard error of the share over the pairs (n = {live['pair_id'].nunique()} pairs).",
             ),

@@ -35,9 +35,27 @@ def zeroshot_section(ctx: Context) -> str:
         ran.add((r.population, r.label))
         pn = paper.ZEROSHOT.get((r.population, r.label))
         if pn is None:
-            rows.append([population_name(r.population), label_name(r.label), "—", fmt_summary(r._asdict(), digits(r.game)), "no paper number"])
+            rows.append(
+                [
+                    population_name(r.population),
+                    label_name(r.label),
+                    "—",
+                    fmt_summary(r._asdict(), digits(r.game)),
+                    "no paper number",
+                ]
+            )
             continue
-        c = Comparison("zero-shot", f"{population_name(r.population)}, {label_name(r.label)}", pn.value, pn.source, r.mean, r.lo, r.hi, r.n, digits(r.game))
+        c = Comparison(
+            "zero-shot",
+            f"{population_name(r.population)}, {label_name(r.label)}",
+            pn.value,
+            pn.source,
+            r.mean,
+            r.lo,
+            r.hi,
+            r.n,
+            digits(r.game),
+        )
         if c.differs:
             c.reasons = ctx.reasons(r.game, r.population, r.label, r.n)
             if r.game == "bandit" and r.label == PAPER_METHOD and r.mean < pn.value:
@@ -48,12 +66,23 @@ def zeroshot_section(ctx: Context) -> str:
                 )
         ctx.comparisons.append(c)
         rows.append([population_name(r.population), label_name(r.label), f"{pn.value:g}", c.row()[2], c.verdict])
-    missing = [f"{population_name(p)} {label_name(lab)}" for (p, lab) in paper.ZEROSHOT if (p, lab) not in ran and (ctx.game_of_population(p) or p.split("-")[0]) in ctx.plans]
+    missing = [
+        f"{population_name(p)} {label_name(lab)}"
+        for (p, lab) in paper.ZEROSHOT
+        if (p, lab) not in ran and (ctx.game_of_population(p) or p.split("-")[0]) in ctx.plans
+    ]
     lines.append(md_table(["population", "method", "paper", "ours", "verdict"], rows))
     if missing:
         lines += ["", f"Paper bars without a result of ours: {', '.join(missing)}."]
     fig = figures.zeroshot_bars(ctx.zeroshot, {k: v.value for k, v in paper.ZEROSHOT.items()})
-    lines += ["", ctx.save(fig, "zeroshot", figures.band_caption(ctx.zeroshot, "Bars: mean over seeds; error bars") + " Crosses: the paper's bars.")]
+    lines += [
+        "",
+        ctx.save(
+            fig,
+            "zeroshot",
+            figures.band_caption(ctx.zeroshot, "Bars: mean over seeds; error bars") + " Crosses: the paper's bars.",
+        ),
+    ]
     checks = []
     claim = paper.ZEROSHOT_CLAIMS[0]
     for population in sorted(data["population"].unique()):
@@ -63,7 +92,13 @@ def zeroshot_section(ctx: Context) -> str:
             checks.append(ClaimCheck(claim, population_name(population), verdict, evidence, ctx.game_of_population(population)))
     ctx.claims += checks
     if checks:
-        lines += ["", f"*{claim.text}* ({claim.source}): judged on the paired difference over the (seed, test partner) units both share, with its 95% t-interval over seeds.", ""]
+        lines += [
+            "",
+            f"*{claim.text}* ({claim.source}): judged on the paired difference over the (seed, test partner) units both share, with its 95% t-interval over seeds.",
+            "",
+        ]
         lines.append(md_table(["scope", "verdict", "evidence"], [c.row() for c in checks]))
-    lines += variants_block(data, "value", WITHIN, (PAPER_METHOD, BASELINE), [BASELINE], "scores higher zero-shot than BaselineModular?")
+    lines += variants_block(
+        data, "value", WITHIN, (PAPER_METHOD, BASELINE), [BASELINE], "scores higher zero-shot than BaselineModular?"
+    )
     return "\n".join(lines)

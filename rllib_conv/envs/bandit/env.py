@@ -86,7 +86,9 @@ class CollaborativeBanditEnv(ParallelEnv):
         if prizes is not None:
             prizes = np.asarray(prizes, dtype=np.float32)
             if prizes.ndim != 2 or prizes.shape[0] < 1 or prizes.shape[1] < 2:
-                raise ValueError(f"prizes must be a contexts x arms matrix with >= 1 context and >= 2 arms, got shape {prizes.shape}")
+                raise ValueError(
+                    f"prizes must be a contexts x arms matrix with >= 1 context and >= 2 arms, got shape {prizes.shape}"
+                )
             if not np.isfinite(prizes).all() or (prizes < 0).any():
                 raise ValueError("prizes must be finite and non-negative")
         else:

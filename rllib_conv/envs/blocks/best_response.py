@@ -68,7 +68,10 @@ class BlocksBestResponse:
         self.grids = all_grids()
         self.index = {tuple(g): i for i, g in enumerate(self.grids)}
         # next_grid[colour][i, a]: the grid index after the owner of `colour` plays a on grid i.
-        self.next_grid = {c: np.array([[self.index[tuple(apply_move(g, c, a))] for a in range(NUM_ACTIONS)] for g in self.grids]) for c in (RED, BLUE)}
+        self.next_grid = {
+            c: np.array([[self.index[tuple(apply_move(g, c, a))] for a in range(NUM_ACTIONS)] for g in self.grids])
+            for c in (RED, BLUE)
+        }
         hidden = np.full(NUM_CELLS, HIDDEN)
         self._situations = np.stack([encode_observation(hidden, g, m, sees_goal=False) for m in P2_MOVES for g in self.grids])
         self.rewards = np.array([[final_reward(goal, g, new_task) for g in self.grids] for goal in GOALS])  # [12 goals, grids]
@@ -92,4 +95,3 @@ class BlocksBestResponse:
 def blocks_best_response(env_config: dict[str, Any], ego_agent: str) -> BlocksBestResponse | None:
     """The planner for an ego playing P1; None for P2 (it would need to infer the hidden goal)."""
     return BlocksBestResponse(bool(env_config.get("new_task", False))) if ego_agent == "player_0" else None
-

@@ -196,5 +196,3 @@ class BlockPlacingEnv(AECEnv):
 
     def close(self) -> None:
         """Nothing to release; defined because PettingZoo requires close() beside render()."""
-
-

@@ -49,7 +49,9 @@ class ModuleRows:
     terminated: list[bool] = field(default_factory=list)
     truncated: list[bool] = field(default_factory=list)
 
-    def add(self, obs: list[dict], actions: list[int], logp: list[float], rewards: list[float], terminated: bool, truncated: bool) -> None:
+    def add(
+        self, obs: list[dict], actions: list[int], logp: list[float], rewards: list[float], terminated: bool, truncated: bool
+    ) -> None:
         """Append one segment: `obs` holds n + 1 observations (`{"observations", "action_mask"}`) for n moves."""
         if len(obs) != len(actions) + 1 or not actions:
             raise ValueError(f"a segment needs n >= 1 moves and n + 1 observations; got {len(actions)} and {len(obs)}")
@@ -130,7 +132,12 @@ def rollout_train_batch(rollouts: list[Rollout], multi_module: Any, gamma: float
         with torch.no_grad():
             values = module.compute_values({Columns.OBS: obs}).detach().cpu().numpy()
         targets = compute_value_targets(
-            values=values, rewards=cols["rewards"], terminateds=cols["terminateds"], truncateds=cols["truncateds"], gamma=gamma, lambda_=lambda_
+            values=values,
+            rewards=cols["rewards"],
+            terminateds=cols["terminateds"],
+            truncateds=cols["truncateds"],
+            gamma=gamma,
+            lambda_=lambda_,
         )
         advantages = targets - values
         advantages = (advantages - advantages.mean()) / max(1e-4, advantages.std())

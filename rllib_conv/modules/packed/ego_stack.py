@@ -70,7 +70,9 @@ class EgoStack(TorchRLModule):
         self.replicas, self.heads = int(cfg["replicas"]), int(cfg["heads"])
         task_cfg, head_cfg = dict(cfg["task"]), dict(cfg["head"])
         self.use_task_logits = bool(head_cfg.get("use_task_logits", True))
-        self._oracle = oracle_for(task_cfg["oracle"]["env"], task_cfg["oracle"].get("env_config", {})) if task_cfg.get("oracle") else None
+        self._oracle = (
+            oracle_for(task_cfg["oracle"]["env"], task_cfg["oracle"].get("env_config", {})) if task_cfg.get("oracle") else None
+        )
         self.samplers = [torch.Generator().manual_seed(int(seed)) for seed in cfg["sample_seeds"]]
         tasks = [self._plain(TaskModule, {**task_cfg, "init_seed": seed}) for seed in cfg["task_seeds"]]
         heads = [[self._plain(PartnerHeadModule, {**head_cfg, "init_seed": seed}) for seed in row] for row in cfg["head_seeds"]]
@@ -98,13 +100,22 @@ class EgoStack(TorchRLModule):
 
     def head_parameters(self) -> list[nn.Parameter]:
         """The heads' stacked parameters ([K, H, ...])."""
-        return [getattr(self, _name(kind, layer, part)) for kind, layers in (("head_pi", HEAD_POLICY), ("head_vf", HEAD_VALUE)) for layer in layers for part in ("weight", "bias")]
+        return [
+            getattr(self, _name(kind, layer, part))
+            for kind, layers in (("head_pi", HEAD_POLICY), ("head_vf", HEAD_VALUE))
+            for layer in layers
+            for part in ("weight", "bias")
+        ]
 
     # --- one replica's weights under the plain modules' names ---------------------------------------------
 
     def task_state(self, replica: int) -> dict[str, torch.Tensor]:
         """Replica `replica`'s task module weights, as a `TaskModule` state dict."""
-        return {f"{layer}.{part}": getattr(self, _name("task", layer, part))[replica].detach().clone() for layer in (*TASK_POLICY, TASK_LOGITS_LAYER, *TASK_VALUE) for part in ("weight", "bias")}
+        return {
+            f"{layer}.{part}": getattr(self, _name("task", layer, part))[replica].detach().clone()
+            for layer in (*TASK_POLICY, TASK_LOGITS_LAYER, *TASK_VALUE)
+            for part in ("weight", "bias")
+        }
 
     def head_state(self, replica: int, head: int) -> dict[str, torch.Tensor]:
         """Head `head` of replica `replica`, as a `PartnerHeadModule` state dict."""

@@ -111,7 +111,11 @@ class StackedEgoMultiRLModule(SharedWiringMultiRLModule):
         """Every head in `batch` on its rows: each replica's task module once on all its heads' rows, each layer batched."""
         stack = self.stack
         views = {mid: self._rl_modules[mid] for mid in batch if isinstance(self._rl_modules.get(mid), HeadView)}
-        out = {mid: self._rl_modules[mid].forward_exploration(b) if explore else self._rl_modules[mid].forward_inference(b) for mid, b in batch.items() if mid not in views and mid in self}
+        out = {
+            mid: self._rl_modules[mid].forward_exploration(b) if explore else self._rl_modules[mid].forward_inference(b)
+            for mid, b in batch.items()
+            if mid not in views and mid in self
+        }
         if not views:
             return out
         # Rows by replica, its heads in stack order: the order a replica's exploration draws in.
@@ -134,7 +138,9 @@ class StackedEgoMultiRLModule(SharedWiringMultiRLModule):
                 lengths[mid] = n
                 start += n
         z, head_sizes = pad_rows(z_parts)
-        head_out = stack._heads("head_pi", HEAD_POLICY, z, _subset([views[mid].index for mid in order], stack.replicas * stack.heads))
+        head_out = stack._heads(
+            "head_pi", HEAD_POLICY, z, _subset([views[mid].index for mid in order], stack.replicas * stack.heads)
+        )
         logits_pad = stack.policy_logits(head_out, pad_rows(l_parts)[0], None if mask is None else pad_rows(m_parts)[0])
         logits = dict(zip(order, unpad(logits_pad, head_sizes)))
         if not explore:
@@ -148,7 +154,11 @@ class StackedEgoMultiRLModule(SharedWiringMultiRLModule):
             start = 0
             for mid in mids:
                 n = lengths[mid]
-                out[mid] = {Columns.ACTION_DIST_INPUTS: logits[mid], Columns.ACTIONS: actions[start : start + n], Columns.ACTION_LOGP: logp[start : start + n]}
+                out[mid] = {
+                    Columns.ACTION_DIST_INPUTS: logits[mid],
+                    Columns.ACTIONS: actions[start : start + n],
+                    Columns.ACTION_LOGP: logp[start : start + n],
+                }
                 start += n
         return out
 
@@ -174,7 +184,9 @@ class StackedEgoMultiRLModule(SharedWiringMultiRLModule):
         values = stack.head_values(z_own).reshape(k, h, b) + task.value.reshape(k, h, b)
         return StackedOutput(own, values, all_logits, head_out, task.logits, valid)
 
-    def stack_batch(self, batch: dict[str, Any]) -> tuple[list[str], torch.Tensor, torch.Tensor | None, torch.Tensor, dict[str, int]]:
+    def stack_batch(
+        self, batch: dict[str, Any]
+    ) -> tuple[list[str], torch.Tensor, torch.Tensor | None, torch.Tensor, dict[str, int]]:
         """Per-module rows of `batch` as [K, H, B, ...] (padded): (head IDs in batch, obs, mask, valid, rows per head)."""
         stack = self.stack
         views = {mid: self._rl_modules[mid] for mid in batch if isinstance(self._rl_modules.get(mid), HeadView)}
@@ -195,11 +207,18 @@ class StackedEgoMultiRLModule(SharedWiringMultiRLModule):
     def _forward_train(self, batch: dict[str, Any], **kwargs: Any) -> dict[str, Any]:
         """RLlib's train forward: every head's logits and values on its own rows, and the batched `StackedOutput`."""
         mids, obs, mask, valid, lengths = self.stack_batch(batch)
-        out = {mid: self._rl_modules[mid].forward_train(b, **kwargs) for mid, b in batch.items() if mid in self and mid not in lengths}
+        out = {
+            mid: self._rl_modules[mid].forward_train(b, **kwargs)
+            for mid, b in batch.items()
+            if mid in self and mid not in lengths
+        }
         stacked = self.forward_stacked(obs, mask, valid)
         for mid in mids:
             v, n = self._rl_modules[mid], lengths[mid]
-            out[mid] = {Columns.ACTION_DIST_INPUTS: stacked.logits[v.replica, v.head, :n], Columns.EMBEDDINGS: stacked.values[v.replica, v.head, :n]}
+            out[mid] = {
+                Columns.ACTION_DIST_INPUTS: stacked.logits[v.replica, v.head, :n],
+                Columns.EMBEDDINGS: stacked.values[v.replica, v.head, :n],
+            }
         out[STACK_ID] = {STACKED: stacked}
         return out
 
