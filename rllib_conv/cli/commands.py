@@ -23,11 +23,12 @@ from typing import Any, Callable, Iterator, Sequence
 
 import yaml
 
+from rllib_conv import partners
 from rllib_conv.common import config_files
 from rllib_conv.common.run_folders import ADAPT_PREFIX, EVAL_FILE, SPEC_FILE, ZEROSHOT_PREFIX, trial_folders
 from rllib_conv.pipelines import naming
 from rllib_conv.pipelines.adapt_config import AdaptConfig
-from rllib_conv.pipelines.pair_config import PairConfig, is_run, split_seat
+from rllib_conv.pipelines.pair_config import PairConfig, is_run, population_seat, split_seat
 from rllib_conv.pipelines.zeroshot_config import ZeroShotConfig
 from rllib_conv.training.experiment import ExperimentConfig, check_trial
 
@@ -255,6 +256,8 @@ def train(args: argparse.Namespace) -> None:
     sweep = args.command == "sweep"
     if sweep and args.resume and not (folder / SPEC_FILE).is_file():
         raise ValueError(f"--resume: {str(folder)!r} holds no sweep to resume (run without --resume to start it)")
+    for population in dict.fromkeys(v.population for v in variants):
+        partners.get(population)  # a misspelt name fails here, in a second, not after torch and Ray load
     _note_reuse(folder, raw, egos=len(variants))
     import pandas as pd
 
@@ -403,6 +406,8 @@ def pair(args: argparse.Namespace) -> None:
         source, what = split_seat(text)
         if is_run(source):
             trials([source])
+        elif source not in partners.kinds():
+            population_seat(text)
         labels.append(naming.seat_label(source, what, is_run(source)))
     path = writable(args.out, "--out") / f"{naming.slug(args.name or '__'.join(labels))}.csv"
     from rllib_conv.pipelines.pair import write_pair
@@ -410,6 +415,16 @@ def pair(args: argparse.Namespace) -> None:
     table = write_pair(cfg, path)
     print(_table(table.T.reset_index().set_axis(["", "value"], axis=1), width=250))
     print(f"wrote {path}")
+
+
+def human_data(args: argparse.Namespace) -> None:
+    """`rllib-conv human-data overcooked`: fetch and convert the 2019 human trials into the cache; a table of what is there."""
+    # Loaded here: it needs the `overcooked` extra, which the other commands do not.
+    from rllib_conv.envs.overcooked import human_data as data
+
+    paths = data.convert(args.cache, args.layouts)
+    print(_table(data.summary(args.cache, args.layouts)))
+    print(f"results in {data.cache_folder(args.cache) / 'trajectories'} ({len(paths)} files)")
 
 
 def play(args: argparse.Namespace) -> None:

@@ -1,14 +1,13 @@
 """Fixed partners: the `Partner` interface, scripted partners per game, and populations.
 
-Importing this package registers every built-in partner kind and population: the trained
-kind here, and each game's scripted kinds and populations from the modules its record
-names (`GameRecord.partners`), so a new game adds none here.
+Importing this package registers every built-in partner kind and population: each game's
+scripted kinds and populations from the modules its record names (`GameRecord.partners`),
+so a new game adds none here; the trained-policy kind (torch, RLlib) loads on first use.
 """
 
 import importlib
 
 from rllib_conv import envs
-from rllib_conv.partners import trained  # noqa: F401  (registers the trained-policy kind)
 from rllib_conv.partners.base import Partner
 from rllib_conv.partners.episodes import play_episodes
 from rllib_conv.partners.kinds import kinds, partner_from_spec, register_kind

@@ -13,6 +13,9 @@ from typing import Any
 from rllib_conv.partners.base import Partner
 
 _KINDS: dict[str, type[Partner]] = {}
+# Built-in kinds imported on first use, like a user's kind: loading a trained policy needs torch
+# and RLlib, which commands that only check a population's name should not wait for (~2 s).
+_ON_FIRST_USE = {"trained_policy": "rllib_conv.partners.trained:TrainedPolicyPartner"}
 
 
 def register_kind(cls: type[Partner]) -> type[Partner]:
@@ -27,20 +30,20 @@ def register_kind(cls: type[Partner]) -> type[Partner]:
 
 def kinds() -> list[str]:
     """Return the registered partner kinds, sorted."""
-    return sorted(_KINDS)
+    return sorted({*_KINDS, *_ON_FIRST_USE})
 
 
 def kind_class(kind: str) -> type[Partner]:
     """The `Partner` class registered as `kind`, importing `"package.module:Class"` kinds; ValueError if there is none."""
-    if kind not in _KINDS and ":" in kind:
-        module, _, attr = kind.partition(":")
+    if kind not in _KINDS and (":" in kind or kind in _ON_FIRST_USE):
+        module, _, attr = _ON_FIRST_USE.get(kind, kind).partition(":")
         try:
             found = getattr(importlib.import_module(module), attr)
         except (ImportError, AttributeError, ValueError) as exc:
             raise ValueError(f"partner kind {kind!r}: cannot import {attr!r} from module {module!r} ({exc})") from None
         if not (isinstance(found, type) and issubclass(found, Partner) and found.kind == kind):
             raise ValueError(f"partner kind {kind!r}: {attr!r} is not a Partner class whose `kind` is {kind!r}")
-        register_kind(found)
+        _KINDS.setdefault(kind, found)  # its module's `@register_kind` may have run already
     try:
         return _KINDS[kind]
     except KeyError:

@@ -28,7 +28,7 @@ from rllib_conv.partners.bandit import BanditConventionPartner
 from rllib_conv.partners.base import Partner
 from rllib_conv.partners.episodes import play_episodes
 from rllib_conv.partners.trained import PolicyPartner
-from rllib_conv.pipelines.pair_config import PairConfig, is_run, split_seat
+from rllib_conv.pipelines.pair_config import PairConfig, is_run, population_seat, split_seat
 from rllib_conv.training.checkpoints import last_checkpoint
 from rllib_conv.training.evaluate import ego_head_partner, load_module
 from rllib_conv.training.experiment import trial_config
@@ -78,18 +78,7 @@ def seat(text: str, seed: int = 0) -> Seat:
         if len(trials) > 1:
             raise ValueError(f"seat {text!r}: {source!r} holds {len(trials)} trials; name one trial folder")
         return _module_seat(text, trials[0], what, seed)
-    try:
-        pop = partners.get(source)
-    except ValueError:
-        raise ValueError(
-            f"seat {text!r}: {source!r} is neither a partner kind ({', '.join(partners.kinds())}), "
-            "a trained-ego trial folder, nor a population (built-in name or manifest)"
-        ) from None
-    entry = next((e for e in pop.partners if e.name == what), None)
-    if entry is None:
-        raise ValueError(
-            f"seat {text!r}: population {pop.name!r} has no member {what!r}; it has {[e.name for e in pop.partners]}"
-        )
+    pop, entry = population_seat(text)
     return Seat(text, entry.build(), (pop.env, pop.env_config))
 
 

@@ -11,6 +11,7 @@ from typing import Any
 
 from pydantic import Field, PositiveInt, field_validator
 
+from rllib_conv import partners
 from rllib_conv.common.config_files import Strict
 from rllib_conv.common.run_folders import POPULATION_FILE
 from rllib_conv.training.settings import EnvName
@@ -80,3 +81,24 @@ class PairConfig(Strict):
         for seat in seats:
             split_seat(seat)
         return seats
+
+
+def population_seat(text: str) -> tuple[partners.Population, partners.PartnerEntry]:
+    """The population and member the seat `text` (`POPULATION:MEMBER`) names; ValueError naming the seat.
+
+    Checked without torch or Ray (the CLI calls it before loading them), so a misspelt seat fails in a second.
+    """
+    source, what = split_seat(text)
+    try:
+        pop = partners.get(source)
+    except ValueError:
+        raise ValueError(
+            f"seat {text!r}: {source!r} is neither a partner kind ({', '.join(partners.kinds())}), "
+            "a trained-ego trial folder, nor a population (built-in name or manifest)"
+        ) from None
+    entry = next((e for e in pop.partners if e.name == what), None)
+    if entry is None:
+        raise ValueError(
+            f"seat {text!r}: population {pop.name!r} has no member {what!r}; it has {[e.name for e in pop.partners]}"
+        )
+    return pop, entry

@@ -8,7 +8,10 @@ checkpoint, errored ones are retried. Running the same command again therefore r
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
+import signal
+import threading
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -161,7 +164,32 @@ def check_spec(folder: Path, spec: dict[str, Any], grows: str | None = None) -> 
 
 
 class StageInterrupted(KeyboardInterrupt):
-    """A Tune run that stopped before all of its trials finished (on Ctrl-C Tune saves and stops the trials, then returns as if done)."""
+    """A Tune run stopped by Ctrl-C (Tune saves and stops the trials, then returns as if done), or with trials unfinished."""
+
+
+def _second_ctrl_c(signum: int, frame: Any) -> None:
+    raise KeyboardInterrupt
+
+
+@contextmanager
+def _noticing_ctrl_c() -> Iterator[list[bool]]:
+    """Yield a flag that says, after the block, whether Ctrl-C stopped the Tune run inside it.
+
+    On SIGINT Tune's own handler stops the run gracefully and puts back the handler it found
+    (`ray.tune.tune._setup_signal_catching`); it tells no one. Had every trial just finished,
+    the stage would pass for done and the next stage start: the Ctrl-C lost. So the handler
+    Tune finds is ours: a second Ctrl-C still raises, and finding ours back means Tune fired.
+    """
+    fired = [False]
+    if threading.current_thread() is not threading.main_thread():
+        yield fired  # only the main thread has signal handlers (and Tune installs none there)
+        return
+    before = signal.signal(signal.SIGINT, _second_ctrl_c)
+    try:
+        yield fired
+        fired[0] = signal.getsignal(signal.SIGINT) is _second_ctrl_c and not os.getenv("TUNE_DISABLE_SIGINT_HANDLER")
+    finally:
+        signal.signal(signal.SIGINT, before)
 
 
 def fit(
@@ -184,8 +212,8 @@ def fit(
     "table" (a table of all trials, see `ProgressTable`) or a Tune callback of its own
     (`StageProgress`). `loggers` adds experiment tracking (`logger_callbacks`).
 
-    Raises `StageInterrupted` when the run stopped with trials neither finished nor failed, so
-    that no caller takes an interrupted run for a finished one (and, e.g., marks its stage done).
+    Raises `StageInterrupted` when Ctrl-C stopped the run or trials neither finished nor failed,
+    so that no caller takes an interrupted run for a finished one (and, e.g., marks its stage done).
     """
     if not isinstance(progress, Callback) and progress not in PROGRESS:
         raise ValueError(f"progress must be one of {sorted(PROGRESS)}, got {progress!r}")
@@ -224,11 +252,14 @@ def fit(
                 checkpoint_config=checkpoint or tune.CheckpointConfig(checkpoint_at_end=True),
             ),
         )
-    results = tuner.fit()
+    with _noticing_ctrl_c() as ctrl_c:
+        results = tuner.fit()
     # Tune marks interrupted trials TERMINATED too; a finished one's last result says `done` (every trainable here sets it).
-    unfinished = sum(r.error is None and not (r.metrics or {}).get("done") for r in results)
-    if unfinished:
+    finished = sum(r.error is not None or bool((r.metrics or {}).get("done")) for r in results)
+    if ctrl_c[0] or finished < len(results):
         raise StageInterrupted(
-            f"{unfinished} of {len(results)} trials of {str(path)!r} stopped before they finished; run the same command again to continue them"
+            f"{finished} of {len(results)} trials of {str(path)!r} finished; run the same command again to continue the others"
+            if finished < len(results)
+            else f"{finished} of {len(results)} trials of {str(path)!r} finished before Ctrl-C; run the same command again to go on"
         )
     return results
