@@ -11,7 +11,7 @@ import torch
 from ray.rllib.algorithms.ppo.torch.ppo_torch_learner import PPOTorchLearner
 from ray.rllib.policy.sample_batch import MultiAgentBatch, SampleBatch
 
-from rllib_conv.learners.minibatches import CyclicMinibatchPlan, ModulePermuters
+from rllib_conv.learners.packed.minibatches import CyclicMinibatchPlan, ModulePermuters
 from rllib_conv.modules.packed.stacked_multi import STACK_ID
 from tests.helpers import bandit_setup, build_learner, hand_batch, params_of
 

@@ -19,7 +19,7 @@ import pytest
 import torch
 
 from rllib_conv.envs.replicated_game import ReplicatedGame, replicated_env_config
-from rllib_conv.learners.minibatches import ModulePermuters
+from rllib_conv.learners.packed.minibatches import ModulePermuters
 from rllib_conv.modules.mapping import PartnerMapping
 from rllib_conv.modules.packed.stacked_multi import STACK_ID
 from rllib_conv.modules.partner_schedule import WeightedPartners
