@@ -6,8 +6,12 @@ game's record (what every layer asks instead of branching on a name), `make(name
 builds its env, `names()` lists them, `register_game(record)` adds one and `register(name,
 factory)` adds a bare PettingZoo env (AEC or parallel). A game named by import path
 (`"package.module:RECORD"`) is found in every process. `to_rllib(name)` exposes any
-registered env to RLlib/Tune as a `MultiAgentEnv`.
+registered env to RLlib/Tune as a `MultiAgentEnv`. Overcooked (`overcooked/`) is registered
+only where its optional extra, the `overcooked` package, is installed; elsewhere
+`game("overcooked")` says how to install it.
 """
+
+import importlib.util
 
 from rllib_conv.envs.bandit import CollaborativeBanditEnv
 from rllib_conv.envs.bandit.record import BANDIT
@@ -19,10 +23,17 @@ from rllib_conv.envs.convention_keys import convention_key
 from rllib_conv.envs.game import GameRecord
 from rllib_conv.envs.hanabi import HanabiEnv
 from rllib_conv.envs.hanabi.record import HANABI
-from rllib_conv.envs.registry import game, games, make, names, register, register_game
+from rllib_conv.envs.registry import game, games, make, names, register, register_game, register_missing
 
 for _record in (BANDIT, BLOCKS, HANABI):
     register_game(_record, builtin=True)
+
+if importlib.util.find_spec("overcooked") is not None:
+    from rllib_conv.envs.overcooked.record import OVERCOOKED
+
+    register_game(OVERCOOKED, builtin=True)
+else:
+    register_missing("overcooked", "pip install 'rllib-conv[overcooked]'")
 
 __all__ = [
     "GameRecord",

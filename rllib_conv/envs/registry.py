@@ -20,6 +20,7 @@ from rllib_conv.envs.game import EnvFactory, GameRecord
 
 _GAMES: dict[str, GameRecord] = {}
 _BUILTIN: set[str] = set()  # registered whenever `rllib_conv.envs` is imported
+_MISSING: dict[str, str] = {}  # built-in games whose optional extra is not installed -> how to install it
 
 
 def register_game(record: GameRecord, *, overwrite: bool = False, builtin: bool = False) -> GameRecord:
@@ -35,6 +36,11 @@ def register_game(record: GameRecord, *, overwrite: bool = False, builtin: bool 
     if builtin:
         _BUILTIN.add(record.name)
     return record
+
+
+def register_missing(name: str, install: str) -> None:
+    """Mark built-in game `name` as needing an optional extra that is not installed: `game(name)` says `install`."""
+    _MISSING[name] = install
 
 
 def found_by_name(name: str) -> bool:
@@ -88,6 +94,8 @@ def game(name: str) -> GameRecord:
             return register_game(dataclasses.replace(found, name=name))
         register(name, found)
         return _GAMES[name]
+    if name in _MISSING:
+        raise ValueError(f"env {name!r} needs its optional extra, which is not installed: {_MISSING[name]}")
     raise ValueError(f"unknown env {name!r}; registered envs: {', '.join(names())} (or give 'package.module:callable')")
 
 

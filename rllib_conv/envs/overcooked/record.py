@@ -1,0 +1,24 @@
+"""Overcooked-AI's record: settings sized for a 2-core laptop, and no oracle (the kitchen has no closed-form best move)."""
+
+from __future__ import annotations
+
+from rllib_conv.envs.defaults import AdaptDefaults, TrainingDefaults
+from rllib_conv.envs.game import GameRecord
+from rllib_conv.envs.overcooked.env import OvercookedEnv
+
+OVERCOOKED = GameRecord(
+    name="overcooked",
+    env=OvercookedEnv,
+    title="Overcooked-AI",
+    # Carroll et al. trained PPO with horizon 400, lr ~1e-3, gamma 0.99, GAE lambda 0.98, on 30
+    # parallel envs and several million steps per pair. Sized down so one seed trains on 2 CPU
+    # cores in minutes: 64 units (the grid is at most a few hundred floats), a rollout of 4
+    # episodes (1 600 steps) per partner so every update sees whole episodes and their deliveries,
+    # minibatches of one episode, and 1M steps, about where self-play on cramped_room first
+    # delivers soups steadily with the shaped reward.
+    training=TrainingDefaults(hidden=64, rollout_per_partner=1_600, minibatch_size=400, num_epochs=8, timesteps=1_000_000),
+    # Adaptation to a new partner: one update per 4 episodes, for 40 episodes.
+    adaptation=AdaptDefaults(every=1_600, steps=16_000),
+    max_score=None,  # no stated best: the score grows with deliveries until the horizon
+    partners=("rllib_conv.partners.overcooked_cooks",),
+)
