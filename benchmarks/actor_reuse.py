@@ -41,7 +41,7 @@ def _tune_config(reuse: bool) -> Any:
 def stage(pairs: int, reuse: bool) -> dict:
     """Train a `pairs`-pair bandit self-play population from an empty folder; wall seconds and workers used."""
     tune.TuneConfig = _tune_config(reuse)
-    raw = config_files.load(
+    raw = config_files.load_checked(
         config_file("selfplay_bandit.yaml"), [f"train_pairs={pairs}", "test_pairs=0", "name=reuse-bench"], schema=SelfPlayConfig
     )
     with tempfile.TemporaryDirectory() as tmp:

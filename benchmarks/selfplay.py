@@ -45,7 +45,7 @@ ROOT = Path(__file__).resolve().parents[1]
 def ours(game: str, pairs: int, budget: int | None) -> dict:
     """Train `pairs` pairs with the tuned config; return steps to gate and speed."""
     overrides = [f"train_pairs={pairs}", "test_pairs=0", f"name=bench-{game}"] + ([f"run.timesteps={budget}"] if budget else [])
-    raw = config_files.load(config_file(f"selfplay_{game}.yaml"), overrides, schema=SelfPlayConfig)
+    raw = config_files.load_checked(config_file(f"selfplay_{game}.yaml"), overrides, schema=SelfPlayConfig)
     with tempfile.TemporaryDirectory() as tmp:
         _, report = train_population(raw, out=Path(tmp) / "pops", storage=Path(tmp) / "runs")
     steps = report["steps_to_gate"].dropna().tolist()

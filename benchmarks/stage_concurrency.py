@@ -34,10 +34,11 @@ STAGE = """
 import json, sys, time
 import ray
 from rllib_conv.pipelines.train import train_stage
+from rllib_conv.training.experiment import checked
 storage, address, n, steps = sys.argv[1], sys.argv[2] or None, int(sys.argv[3]), int(sys.argv[4])
 raws = [{"name": f"bandit-s2-hand__lam{i}", "population": "bandit-s2-hand", "lam": 0.05 * i, "run": {"timesteps": steps}} for i in range(n)]
 start = time.perf_counter()
-train_stage(raws, storage, address, label="stage")
+train_stage([checked(raw) for raw in raws], storage, address, label="stage")
 wall = time.perf_counter() - start
 cpus = ray.cluster_resources().get("CPU")
 print("STAGE " + json.dumps({"wall_s": wall, "cpus": cpus}))

@@ -52,10 +52,10 @@ def bandit_egos(ray_session, tmp_path_factory):
     from rllib_conv.pipelines.train import run
     from rllib_conv.training import experiment
 
-    raw = experiment.load(
+    config = experiment.load(
         "tune_configs/bandit_modular.yaml", ["name=egos", "population={grid_search: [bandit-s1-hand, bandit-s2-hand]}"]
     )
-    results = run(raw, storage=tmp_path_factory.mktemp("egos"))
+    results = run(config, storage=tmp_path_factory.mktemp("egos"))
     assert not results.errors
     return {r.config["population"]: TrainedEgo(str(trial_folders(r.path)[0]), r) for r in results}
 

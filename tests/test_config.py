@@ -66,15 +66,28 @@ def test_bad_configs_name_the_key(tmp_path, data, match) -> None:
 
 
 def test_grids_expand_to_every_combination(tmp_path) -> None:
-    raw = experiment.load(
+    config = experiment.load(
         write(tmp_path, {"population": "p", "lam": {"grid_search": [0.0, 0.5]}, "seed": {"grid_search": [0, 1, 2]}})
     )
-    variants = experiment.validate(raw)
-    assert sorted((v.lam, v.seed) for v in variants) == [(lam, s) for lam in (0.0, 0.5) for s in (0, 1, 2)]
+    assert sorted((v.lam, v.seed) for v in config.variants) == [(lam, s) for lam in (0.0, 0.5) for s in (0, 1, 2)]
+    assert config.raw["lam"] == {"grid_search": [0.0, 0.5]}  # the grids kept for Tune
+    assert experiment.checked(config.raw).variants == config.variants
+
+
+def test_a_checked_config_is_a_copy_validated_once_and_blames_its_source() -> None:
+    raw = {"population": "p", "lam": {"grid_search": [0.0, 0.5]}}
+    config = config_files.checked(raw, ExperimentConfig, "plan")
+    raw["lam"] = 2.0  # the caller's dict changing later changes nothing checked
+    assert config.raw["lam"] == {"grid_search": [0.0, 0.5]} and [v.lam for v in config.variants] == [0.0, 0.5]
+    assert config.first is config.variants[0] and isinstance(config.first, ExperimentConfig)
+    with pytest.raises(ValueError, match=r"^plan: ppo\.lr: Input should be a valid number"):
+        config_files.checked({"population": "p", "ppo": {"lr": "fast"}}, ExperimentConfig, "plan")
+    with pytest.raises(ValueError, match=r"^--set lam=-1: lam: Input should be greater than or equal to 0"):
+        config_files.with_sets({"population": "p"}, ["lam=-1"], ExperimentConfig)
 
 
 def test_set_overrides_and_their_errors(tmp_path) -> None:
-    raw = experiment.load(write(tmp_path, {"population": "p"}), ["ppo.lr=0.001", "lam=0.3", "run.timesteps=500"])
+    raw = experiment.load(write(tmp_path, {"population": "p"}), ["ppo.lr=0.001", "lam=0.3", "run.timesteps=500"]).raw
     assert (raw["ppo"]["lr"], raw["lam"], raw["run"]["timesteps"]) == (0.001, 0.3, 500)
     with pytest.raises(ValueError, match="--set expects key=value"):
         experiment.load(write(tmp_path, {"population": "p"}), ["lam"])

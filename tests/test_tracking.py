@@ -10,6 +10,7 @@ from tensorboardX.proto import event_pb2
 
 from rllib_conv.cli import main
 from rllib_conv.pipelines.train import run
+from rllib_conv.training import experiment
 from rllib_conv.training.tuning import logger_callbacks
 from tests.helpers import tiny_experiment
 
@@ -30,7 +31,7 @@ def scalar_tags(event_file: Path) -> set[str]:
 @pytest.fixture(scope="module")
 def tracked(ray_session, tmp_path_factory) -> Path:
     storage = tmp_path_factory.mktemp("tracking")
-    results = run(TINY, storage=storage, loggers=("tensorboard", "wandb", "mlflow"))
+    results = run(experiment.checked(TINY), storage=storage, loggers=("tensorboard", "wandb", "mlflow"))
     assert not results.errors
     return storage / "tracked"
 

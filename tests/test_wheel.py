@@ -27,8 +27,8 @@ from rllib_conv.pipelines.demo import DEMO_CONFIG
 from rllib_conv.pipelines.plans import plan_for
 from rllib_conv.training import experiment
 assert rllib_conv.__file__.startswith(sys.prefix), rllib_conv.__file__
-raw = experiment.load(config_file(DEMO_CONFIG))
-print("demo population", raw["population"])
+config = experiment.load(config_file(DEMO_CONFIG))
+print("demo population", config.raw["population"])
 print("bandit plan populations", len(plan_for("bandit").populations))
 table = load_user_study()
 print("user study rows", len(table), "from", user_study_csv())

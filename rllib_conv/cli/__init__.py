@@ -34,6 +34,7 @@ from rllib_conv.cli.arguments import (
     set_help,
 )
 from rllib_conv.cli.commands import ADAPT_OPTIONS, ZEROSHOT_OPTIONS, check_report_inputs
+from rllib_conv.cli.human_data import human_data_parsers
 from rllib_conv.common.config_files import describe
 from rllib_conv.pipelines.adapt_config import AdaptConfig
 from rllib_conv.pipelines.pair_config import SEAT_SYNTAX, PairConfig
@@ -265,6 +266,7 @@ def build_parser() -> argparse.ArgumentParser:
     _zeroshot(command)
     _players(command)
     _reproduce(command)
+    human_data_parsers(command)
     _play(sub)
     return parser
 

@@ -241,17 +241,18 @@ def demo(args: argparse.Namespace) -> None:
     """`rllib-conv demo`: train the bandit's modular ego and show what it learned."""
     from rllib_conv.common.resources import config_file
 
-    raw, _ = config_files.load_checked(config_file("bandit_modular.yaml"), ["name=demo", *args.set], schema=ExperimentConfig)
-    _note_reuse(writable(args.storage, "--storage") / "demo", raw, egos=1)
+    config = config_files.load_checked(config_file("bandit_modular.yaml"), ["name=demo", *args.set], schema=ExperimentConfig)
+    _note_reuse(writable(args.storage, "--storage") / "demo", config.raw, egos=1)
     from rllib_conv.pipelines.demo import demo as run_demo
 
-    run_demo(storage=args.storage, address=args.address, overrides=args.set)
+    run_demo(config, storage=args.storage, address=args.address)
     print(f"results in {Path(args.storage) / 'demo'}")
 
 
 def train(args: argparse.Namespace) -> None:
     """`rllib-conv train` and `sweep`: train the egos of an experiment YAML; a table of trials."""
-    raw, variants = config_files.load_checked(args.config, args.set, schema=ExperimentConfig)
+    config = config_files.load_checked(args.config, args.set, schema=ExperimentConfig)
+    raw, variants = config.raw, config.variants
     folder = writable(args.storage, "--storage") / variants[0].name
     sweep = args.command == "sweep"
     if sweep and args.resume and not (folder / SPEC_FILE).is_file():
@@ -264,7 +265,7 @@ def train(args: argparse.Namespace) -> None:
     from rllib_conv.pipelines.train import run
 
     results = run(
-        raw,
+        config,
         storage=args.storage,
         address=args.address,
         progress="table" if sweep else "lines",
@@ -295,15 +296,15 @@ def partners_train(args: argparse.Namespace) -> None:
     """`rllib-conv partners train`: a self-play population, keeping the pairs that reach the gate."""
     from rllib_conv.pipelines.selfplay_config import SelfPlayConfig
 
-    raw, variants = config_files.load_checked(args.config, args.set, schema=SelfPlayConfig)
-    target = writable(args.out, "--out") / variants[0].name
+    config = config_files.load_checked(args.config, args.set, schema=SelfPlayConfig)
+    target = writable(args.out, "--out") / config.first.name
     writable(args.storage, "--storage")
     if target.exists() and not args.overwrite:
         raise ValueError(f"population folder {str(target)!r} already exists; choose another name or pass --overwrite")
     from rllib_conv.pipelines.selfplay import train_population
 
     population, report = train_population(
-        raw, out=args.out, storage=args.storage, address=args.address, overwrite=args.overwrite, loggers=args.log
+        config, out=args.out, storage=args.storage, address=args.address, overwrite=args.overwrite, loggers=args.log
     )
     print(_table(report))
     failed = report.loc[~report["passed"].astype(bool), "partner"].tolist()
@@ -356,12 +357,12 @@ def adapt(args: argparse.Namespace) -> None:
     )
     raw = {"name": name, "runs": args.runs, "split": args.split, "train_task": not args.frozen_task, "head_init": args.head_init}
     raw.update({k: v for k, v in options.items() if v is not None})
-    raw, _ = config_files.with_sets(raw, args.set, AdaptConfig, _given(options, ADAPT_OPTIONS), "arguments")
+    config = config_files.with_sets(raw, args.set, AdaptConfig, _given(options, ADAPT_OPTIONS), "arguments")
     out, storage = writable(args.out, "--out"), writable(args.storage, "--storage")
-    _note_reuse(storage / f"{ADAPT_PREFIX}{name}", raw)
+    _note_reuse(storage / f"{ADAPT_PREFIX}{name}", config.raw)
     from rllib_conv.pipelines.adapt import run_adaptation
 
-    curves = run_adaptation(raw, out=out, storage=storage, address=args.address, loggers=args.log)
+    curves = run_adaptation(config, out=out, storage=storage, address=args.address, loggers=args.log)
     print("mean over partners and seeds, by env steps:")
     print(_table(adapt_summary(curves)))
     _wrote_with_figures(out / f"{name}.csv")
@@ -373,12 +374,12 @@ def zeroshot(args: argparse.Namespace) -> None:
     name = args.name or naming.zeroshot_name(args.runs, new_population=args.new_population, sets=args.set)
     options = {"name": args.name, "new_population": args.new_population}
     raw = {"name": name, "runs": args.runs} | ({"new_population": args.new_population} if args.new_population else {})
-    raw, _ = config_files.with_sets(raw, args.set, ZeroShotConfig, _given(options, ZEROSHOT_OPTIONS), "arguments")
+    config = config_files.with_sets(raw, args.set, ZeroShotConfig, _given(options, ZEROSHOT_OPTIONS), "arguments")
     out, storage = writable(args.out, "--out"), writable(args.storage, "--storage")
-    _note_reuse(storage / f"{ZEROSHOT_PREFIX}{name}", raw)
+    _note_reuse(storage / f"{ZEROSHOT_PREFIX}{name}", config.raw)
     from rllib_conv.pipelines.zeroshot import run_zeroshot
 
-    table = run_zeroshot(raw, out=out, storage=storage, address=args.address, loggers=args.log)
+    table = run_zeroshot(config, out=out, storage=storage, address=args.address, loggers=args.log)
     print(_table(table.drop(columns=["run"])))
     _wrote_with_figures(out / f"{name}.csv")
 
@@ -422,9 +423,23 @@ def human_data(args: argparse.Namespace) -> None:
     # Loaded here: it needs the `overcooked` extra, which the other commands do not.
     from rllib_conv.envs.overcooked import human_data as data
 
+    unknown = [layout for layout in args.layouts or [] if layout not in data.LAYOUTS]
+    if unknown:
+        raise ValueError(f"--layouts: unknown layout {unknown[0]!r}; the human data covers {', '.join(data.LAYOUTS)}")
     paths = data.convert(args.cache, args.layouts)
     print(_table(data.summary(args.cache, args.layouts)))
     print(f"results in {data.cache_folder(args.cache) / 'trajectories'} ({len(paths)} files)")
+
+
+def human_proxies(args: argparse.Namespace) -> None:
+    """`rllib-conv human-proxies overcooked`: behaviour-cloned BC and H_proxy per layout and seed, into the cache; their table."""
+    # Loaded here: it needs the `overcooked` extra, which the other commands do not.
+    from rllib_conv.pipelines import human_proxies as proxies
+
+    table = proxies.run(args.layouts, seeds=args.seeds, cache=args.cache, episodes=args.episodes, progress=True)
+    shown = ["layout", "seed", "bc_accuracy_moves_test_split", "hproxy_accuracy_moves_train_split", "return_bc_hproxy"]
+    print(_table(table[[*shown, "return_bc_bc", "human_return_test"]]))
+    print(f"wrote {proxies.report_path(args.cache)} (every accuracy, time and return)")
 
 
 def play(args: argparse.Namespace) -> None:

@@ -7,6 +7,10 @@ be greater than 0`), blamed on what set that key: a `--set KEY=VALUE`, a command
 option, or the file (or "arguments") otherwise. The schemas themselves live beside what
 they configure: `rllib_conv.training.experiment.ExperimentConfig` (an ego), and one per
 pipeline in `rllib_conv.pipelines` (adaptation, zero-shot, self-play, reproduce plans).
+
+A config is validated once, where it enters (the CLI, `reproduce`'s plans, a test), into a
+`Checked`: its raw dict (the Tune param space, grids kept) with every grid combination
+validated. The pipelines take `Checked` values and do not validate again.
 """
 
 from __future__ import annotations
@@ -15,8 +19,9 @@ import copy
 import itertools
 import re
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Generic, TypeVar
 
 import yaml
 from pydantic import BaseModel, ConfigDict, ValidationError
@@ -32,11 +37,32 @@ _TYPE_TAG = re.compile(r"^(constrained-\w+|function-\w+\[.*\]|\w+\[.*\]|int|floa
 # Origins: key path -> the option that set it (`("pick_steps",): "--pick-steps"`).
 Origins = Mapping[tuple[str, ...], str]
 
+S = TypeVar("S", bound=BaseModel)
+
 
 class Strict(BaseModel):
     """Base of every schema: unknown keys are errors, and so are bad values set later."""
 
     model_config = ConfigDict(extra="forbid", validate_assignment=True)
+
+
+@dataclass(frozen=True)
+class Checked(Generic[S]):
+    """A config validated once, with its grids: what every pipeline takes.
+
+    `raw` is the Tune param space (grids kept as `{grid_search: [...]}`; treat it as
+    read-only), `variants` every grid combination validated against the schema, in
+    `expand_grid`'s order. Built by `checked`, `with_sets` or `load_checked` only, so a
+    `Checked` always passed the validator.
+    """
+
+    raw: dict[str, Any]
+    variants: tuple[S, ...]
+
+    @property
+    def first(self) -> S:
+        """The first grid combination (the only one of a config without grids)."""
+        return self.variants[0]
 
 
 def _key_path(loc: Sequence[Any]) -> tuple[str, ...]:
@@ -162,6 +188,12 @@ def check(raw: Any, schema: type[BaseModel], origins: Origins | None = None, def
     return variants
 
 
+def checked(raw: Any, schema: type[S], source: str = "config", origins: Origins | None = None) -> Checked[S]:
+    """`raw` (a copy) with every grid combination validated against `schema` (`check`; problems blamed on `origins`, else `source`)."""
+    variants = check(raw, schema, origins, source)  # ValueError on a non-mapping, before the copy
+    return Checked(copy.deepcopy(raw), tuple(variants))
+
+
 def shown(text: str, limit: int = 80) -> str:
     """`text` as an error message repeats it: whole, or its start and its length when long."""
     return text if len(text) <= limit else f"{text[: limit - 20]}... ({len(text)} characters)"
@@ -194,9 +226,9 @@ def parse_override(text: str) -> tuple[tuple[str, ...], Any]:
 
 
 def with_sets(
-    raw: dict[str, Any], sets: Sequence[str], schema: type[BaseModel], origins: Origins | None = None, default: str = "arguments"
-) -> tuple[dict[str, Any], list[Any]]:
-    """`raw` with the `--set KEY=VALUE` overrides applied (a copy), and its validated grid combinations (`check`)."""
+    raw: dict[str, Any], sets: Sequence[str], schema: type[S], origins: Origins | None = None, default: str = "arguments"
+) -> Checked[S]:
+    """`raw` with the `--set KEY=VALUE` overrides applied (a copy), checked: its grid combinations validated (`check`)."""
     if not isinstance(raw, dict):
         raise ValueError(f"{default}: expected a mapping of settings, got {type(raw).__name__}")
     raw, origins = copy.deepcopy(raw), dict(origins or {})
@@ -207,7 +239,7 @@ def with_sets(
         except (AttributeError, TypeError):  # a key below a value that is not a mapping (lam.x=1)
             raise ValueError(f"{SET} {shown(text)}: {'.'.join(key[:-1])} is not a section of settings") from None
         origins[key] = f"{SET} {shown(text)}"
-    return raw, check(raw, schema, origins, default)
+    return Checked(raw, tuple(check(raw, schema, origins, default)))
 
 
 def validate(raw: dict[str, Any], source: str = "config", *, schema: type[BaseModel]) -> list:
@@ -219,7 +251,7 @@ def from_dict(
     raw: dict[str, Any], overrides: Sequence[str] = (), *, schema: type[BaseModel], source: str = "arguments"
 ) -> dict[str, Any]:
     """Apply `--set` overrides to `raw` and validate it against `schema`; return the raw dict."""
-    return with_sets(raw, overrides, schema, {}, source)[0]
+    return with_sets(raw, overrides, schema, {}, source).raw
 
 
 def read_yaml(path: str | Path, what: str = "config file") -> Any:
@@ -243,8 +275,8 @@ def read_yaml(path: str | Path, what: str = "config file") -> Any:
         raise ValueError(f"{what} {str(path)!r} holds what this tool cannot read: {_first_words(exc)}") from None
 
 
-def load_checked(path: str | Path, overrides: Sequence[str] = (), *, schema: type[BaseModel]) -> tuple[dict[str, Any], list[Any]]:
-    """A config YAML with its `--set` overrides: the raw dict (grids kept, for Tune) and every combination validated.
+def load_checked(path: str | Path, overrides: Sequence[str] = (), *, schema: type[S]) -> Checked[S]:
+    """A config YAML with its `--set` overrides, checked: the raw dict (grids kept, for Tune) and every combination validated.
 
     Problems name the `--set` that caused them, else the file.
     """
@@ -257,4 +289,4 @@ def load(path: str | Path, overrides: Sequence[str] = (), *, schema: type[BaseMo
 
     Returns the raw dict (grids kept as `{grid_search: [...]}`) for Tune.
     """
-    return load_checked(path, overrides, schema=schema)[0]
+    return load_checked(path, overrides, schema=schema).raw

@@ -16,6 +16,7 @@ from rllib_conv.partners.population import (
     Population,
     from_partners,
     get,
+    is_builtin,
     names,
     register_builtin,
 )
@@ -30,6 +31,7 @@ __all__ = [
     "Population",
     "from_partners",
     "get",
+    "is_builtin",
     "kinds",
     "names",
     "partner_from_spec",

@@ -131,6 +131,8 @@ class Population(BaseModel):
 
 
 _BUILTINS: dict[str, Callable[[], Population]] = {}
+# Built-ins that exist only after a step on the user's machine (trained human proxies): listed once `ready()` says so.
+_READY: dict[str, Callable[[], bool]] = {}
 
 
 def task_suffix(new_task: bool) -> str:
@@ -138,14 +140,24 @@ def task_suffix(new_task: bool) -> str:
     return "-newtask" if new_task else ""
 
 
-def register_builtin(name: str, builder: Callable[[], Population]) -> None:
-    """Make `builder()` addressable as the population `name`."""
+def register_builtin(name: str, builder: Callable[[], Population], ready: Callable[[], bool] | None = None) -> None:
+    """Make `builder()` addressable as the population `name`; with `ready`, `names()` lists it only while `ready()` is true.
+
+    `get(name)` always calls `builder`, so a built-in that is not ready says itself what to run first.
+    """
     _BUILTINS[name] = builder
+    if ready is not None:
+        _READY[name] = ready
+
+
+def is_builtin(name: str) -> bool:
+    """Whether `name` is a registered built-in population, loadable now or not (see `register_builtin`'s `ready`)."""
+    return name in _BUILTINS
 
 
 def names() -> list[str]:
-    """Return the built-in population names, in registration order."""
-    return list(_BUILTINS)
+    """Return the built-in population names that can be loaded now, in registration order."""
+    return [name for name in _BUILTINS if name not in _READY or _READY[name]()]
 
 
 def population_ref(name_or_path: str) -> str:
@@ -169,6 +181,8 @@ def with_absolute_paths(raw: dict[str, Any], key: str) -> dict[str, Any]:
 
 def get(name_or_path: str | Path) -> Population:
     """Return the built-in population `name_or_path`, or load the manifest at that path."""
+    if not str(name_or_path).strip():  # Path("") is the working folder, which would be searched for a manifest
+        raise ValueError(f"population must name a built-in ({', '.join(names())}) or a manifest file, got {str(name_or_path)!r}")
     if str(name_or_path) in _BUILTINS:
         return _BUILTINS[str(name_or_path)]()
     path = Path(name_or_path)

@@ -50,7 +50,7 @@ from rllib_conv.adaptation.fine_tune_guard import FineTuneGuard
 from rllib_conv.adaptation.head_pick import HeadPick, pick_head
 from rllib_conv.adaptation.registry import FRESH, PICK, POSTERIOR, adapter, check_trained_ego
 from rllib_conv.common.atomic_files import replaced_atomically
-from rllib_conv.common.config_files import validate
+from rllib_conv.common.config_files import Checked
 from rllib_conv.common.methods import method
 from rllib_conv.common.run_folders import ADAPT, RL_MODULE_DIR, trial_folders
 from rllib_conv.common.seeds import pick_seed
@@ -381,20 +381,20 @@ def curve_packing_key(cfg: AdaptConfig, pair: dict[str, str]) -> Hashable:
 
 
 def run_adaptations(
-    raws: list[dict[str, Any]],
+    configs: list[Checked[AdaptConfig]],
     out: str | Path = "adaptation",
     storage: str | Path = "runs",
     address: str | None = None,
     label: str | None = None,
     loggers: Sequence[str] = (),
 ) -> dict[str, pd.DataFrame]:
-    """Adapt every run of every adapt config in `raws` in one Tune run; write and return each config's curves CSV by name.
+    """Adapt every run of every adapt config in `configs` (checked) in one Tune run; write and return each config's curves CSV by name.
 
     One config runs as the Tune experiment `adapt-<name>`; several as `adapt-stage-<hash>`
     (their specs' hash: the same configs continue the same run). `label` names the stage in
     its progress line (a `StageProgress`); without it every result prints a line.
     """
-    cfgs = validated(raws, lambda raw: validate(raw, schema=AdaptConfig)[0], "adapt")
+    cfgs = validated(configs, lambda config: config.first, "adapt")
     curves = [adaptation_curves(cfg) for cfg in cfgs]
     for cfg, pairs in zip(cfgs, curves):
         for pair in pairs:
@@ -407,17 +407,18 @@ def run_adaptations(
         table=CURVES_TABLE,
         manifest_key="population",
     )
+    raws = [config.raw for config in configs]
     return run_packed(
         stage, raws, cfgs, curves, lambda i, pair: curve_packing_key(cfgs[i], pair), out, storage, address, label, loggers
     )
 
 
 def run_adaptation(
-    raw: dict[str, Any],
+    config: Checked[AdaptConfig],
     out: str | Path = "adaptation",
     storage: str | Path = "runs",
     address: str | None = None,
     loggers: Sequence[str] = (),
 ) -> pd.DataFrame:
-    """Adapt every run in `raw` to every chosen partner; write and return the tidy curves CSV."""
-    return next(iter(run_adaptations([raw], out, storage, address, loggers=loggers).values()))
+    """Adapt every run of the adapt config `config` (checked) to every chosen partner; write and return the tidy curves CSV."""
+    return next(iter(run_adaptations([config], out, storage, address, loggers=loggers).values()))

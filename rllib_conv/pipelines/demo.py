@@ -14,14 +14,14 @@ import numpy as np
 import pandas as pd
 
 from rllib_conv import partners
-from rllib_conv.common.resources import config_file
+from rllib_conv.common.config_files import Checked
 from rllib_conv.common.run_folders import trial_folders
 from rllib_conv.envs.bandit import CollaborativeBanditEnv, oracle_marginals
 from rllib_conv.envs.bandit.oracle import bandit_states
 from rllib_conv.pipelines.train import run
-from rllib_conv.training import experiment
 from rllib_conv.training.checkpoints import last_checkpoint
 from rllib_conv.training.evaluate import load_module, task_probs
+from rllib_conv.training.experiment import ExperimentConfig
 
 DEMO_CONFIG = "bandit_modular.yaml"  # a shipped config (`tune_configs/` in the repository)
 
@@ -31,13 +31,16 @@ def _arms(p: np.ndarray, top: int = 3) -> str:
     return "  ".join(f"{a}:{p[a]:.2f}" for a in order if p[a] >= 0.005)
 
 
-def demo(storage: str | Path = "runs", address: str | None = None, overrides: list[str] = ()) -> None:
-    """Train, then print per-partner returns and the task module's marginals."""
-    raw = experiment.load(config_file(DEMO_CONFIG), ["name=demo", *overrides])
-    result = run(raw, storage=storage, address=address)[0]
+def demo(config: Checked[ExperimentConfig], storage: str | Path = "runs", address: str | None = None) -> None:
+    """Train the demo's experiment `config`, then print per-partner returns and the task module's marginals.
+
+    `config` is `DEMO_CONFIG` with `--set name=demo` and the user's overrides, checked
+    (`experiment.load`; the CLI checks it before Ray loads).
+    """
+    result = run(config, storage=storage, address=address)[0]
     if result.error is not None:
         raise RuntimeError(f"demo training failed: {result.error}")
-    exp = experiment.validate(raw)[0]
+    exp = config.first
     pop = partners.get(exp.population)
     m = result.metrics
     rows = [

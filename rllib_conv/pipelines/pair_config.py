@@ -91,7 +91,9 @@ def population_seat(text: str) -> tuple[partners.Population, partners.PartnerEnt
     source, what = split_seat(text)
     try:
         pop = partners.get(source)
-    except ValueError:
+    except ValueError as exc:
+        if partners.is_builtin(source):  # a built-in that needs a step first (trained human proxies) says which
+            raise ValueError(f"seat {text!r}: {exc}") from None
         raise ValueError(
             f"seat {text!r}: {source!r} is neither a partner kind ({', '.join(partners.kinds())}), "
             "a trained-ego trial folder, nor a population (built-in name or manifest)"

@@ -87,6 +87,8 @@ from rllib_conv.training.experiment import ExperimentConfig
 # Stages `redo` can run again: where each experiment's CSV and Tune folder live. Training and
 # self-play feed every later stage, so redoing those means a fresh output folder.
 REDO_OUTPUTS = {ADAPT: ADAPTATION_DIR, ZEROSHOT: ZEROSHOT_DIR, MARGINALS: None}
+# What a problem in a stage's config is blamed on: the plan builds them, no file or `--set` holds them.
+ARGUMENTS = "arguments"
 
 
 def _merge(base: dict[str, Any], extra: dict[str, Any]) -> dict[str, Any]:
@@ -97,7 +99,11 @@ def _merge(base: dict[str, Any], extra: dict[str, Any]) -> dict[str, Any]:
 
 
 class Reproduction:
-    """Runs a `Plan`'s stages under `root`, skipping finished ones."""
+    """Runs a `Plan`'s stages under `root`, skipping finished ones.
+
+    Each stage builds its configs from the plan as raw dicts and checks them once
+    (`config_files.checked`) before handing them to its pipeline.
+    """
 
     def __init__(
         self, plan: Plan, root: Path, address: str | None = None, log: Callable[[str], None] = print, loggers: Sequence[str] = ()
@@ -131,10 +137,15 @@ class Reproduction:
             if (target / POPULATION_FILE).is_file():
                 continue
             base = config_files.load(config_file(f"selfplay_{self.plan.game}.yaml"), schema=SelfPlayConfig)
-            raw = config_files.from_dict(_merge(base, overrides), schema=SelfPlayConfig)
+            config = config_files.checked(_merge(base, overrides), SelfPlayConfig, ARGUMENTS)
             label = f"[{self.plan.game}] self-play {overrides['name']}"
             _, report = train_population(
-                raw, out=self.root / POPULATIONS_DIR, storage=self.runs, address=self.address, label=label, loggers=self.loggers
+                config,
+                out=self.root / POPULATIONS_DIR,
+                storage=self.runs,
+                address=self.address,
+                label=label,
+                loggers=self.loggers,
             )
             self.log(f"self-play {overrides['name']}: {int(report['passed'].sum())}/{len(report)} pairs passed the gate")
 
@@ -154,11 +165,11 @@ class Reproduction:
         return list({e["name"]: e for e in experiments}.values())
 
     def stage_train(self) -> None:
-        raws = [config_files.from_dict(e, schema=ExperimentConfig) for e in self.training()]
-        train_stage(raws, storage=self.runs, address=self.address, label=f"[{self.plan.game}] train", loggers=self.loggers)
+        configs = [config_files.checked(e, ExperimentConfig, ARGUMENTS) for e in self.training()]
+        train_stage(configs, storage=self.runs, address=self.address, label=f"[{self.plan.game}] train", loggers=self.loggers)
 
     def stage_adapt(self) -> None:
-        raws = []
+        configs = []
         for population, methods in self.populations().items():
             pop = partners.get(population)
             names = [e.name for e in pop.entries("test")][: self.plan.adapt_partners]
@@ -177,11 +188,16 @@ class Reproduction:
                 if covers(self.root / ADAPTATION_DIR / f"{name}.csv", extra["runs"]):
                     continue
                 raw = _merge({"name": name, "population": population, "partners": names}, {**self.plan.adapt_overrides, **extra})
-                raws.append(config_files.from_dict(raw, schema=AdaptConfig))
-        if raws:
+                configs.append(config_files.checked(raw, AdaptConfig, ARGUMENTS))
+        if configs:
             label = f"[{self.plan.game}] adapt"
             run_adaptations(
-                raws, out=self.root / ADAPTATION_DIR, storage=self.runs, address=self.address, label=label, loggers=self.loggers
+                configs,
+                out=self.root / ADAPTATION_DIR,
+                storage=self.runs,
+                address=self.address,
+                label=label,
+                loggers=self.loggers,
             )
 
     def egos(self, experiment: str) -> list[str]:
@@ -190,21 +206,18 @@ class Reproduction:
         return [str(t.resolve()) for t in trial_folders(self.runs / experiment) if read_trial_config(t).get("seed") in seeds]
 
     def stage_zeroshot(self) -> None:
-        raws = []
+        configs = []
         for population in self.plan.zeroshot_populations:
             for method in self.plan.zeroshot_methods:
                 name = self.experiment(population, method)["name"]
                 runs = self.egos(name)
                 if not covers(self.root / ZEROSHOT_DIR / f"{name}.csv", runs):
-                    raws.append(
-                        config_files.from_dict(
-                            _merge({"name": name, "runs": runs}, self.plan.zeroshot_overrides), schema=ZeroShotConfig
-                        )
-                    )
-        if raws:
+                    raw = _merge({"name": name, "runs": runs}, self.plan.zeroshot_overrides)
+                    configs.append(config_files.checked(raw, ZeroShotConfig, ARGUMENTS))
+        if configs:
             label = f"[{self.plan.game}] zeroshot"
             run_zeroshots(
-                raws, out=self.root / ZEROSHOT_DIR, storage=self.runs, address=self.address, label=label, loggers=self.loggers
+                configs, out=self.root / ZEROSHOT_DIR, storage=self.runs, address=self.address, label=label, loggers=self.loggers
             )
 
     def has_marginals(self, experiment: str) -> bool:

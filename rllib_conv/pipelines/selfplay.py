@@ -31,7 +31,7 @@ from ray.rllib.core.rl_module.multi_rl_module import MultiRLModuleSpec
 from ray.rllib.core.rl_module.rl_module import RLModuleSpec
 
 from rllib_conv import envs
-from rllib_conv.common.config_files import validate
+from rllib_conv.common.config_files import Checked
 from rllib_conv.common.run_folders import (
     POPULATION_FILE,
     RL_MODULE_DIR,
@@ -233,7 +233,7 @@ def write_population(cfg: SelfPlayConfig, results: tune.ResultGrid, folder: Path
 
 
 def train_population(
-    raw: dict[str, Any],
+    config: Checked[SelfPlayConfig],
     out: str | Path = "populations",
     storage: str | Path = "runs",
     address: str | None = None,
@@ -241,7 +241,7 @@ def train_population(
     label: str | None = None,
     loggers: Sequence[str] = (),
 ) -> tuple[Population, pd.DataFrame]:
-    """Train every pair of the self-play config `raw` and write the population to `out/<name>/`.
+    """Train every pair of the self-play config `config` (checked: `config_files.load_checked`) and write the population to `out/<name>/`.
 
     `label` prints one progress line for all pairs (`StageProgress`) instead of one per
     result; `loggers` adds experiment tracking (`tuning.logger_callbacks`).
@@ -249,7 +249,7 @@ def train_population(
     The population is assembled in a temporary folder and moved into place only when
     complete, so a crash never leaves a half-written population (or replaces an old one).
     """
-    cfg = validate(raw, schema=SelfPlayConfig)[0]
+    cfg, raw = config.first, config.raw
     game_agents(cfg)
     target = Path(out).resolve() / cfg.name
     if target.exists() and not overwrite:

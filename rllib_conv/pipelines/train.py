@@ -25,7 +25,7 @@ import numpy as np
 from ray import tune
 from ray.tune.search.variant_generator import generate_variants
 
-from rllib_conv.common.config_files import GRID_KEY, is_grid
+from rllib_conv.common.config_files import GRID_KEY, Checked, is_grid
 from rllib_conv.common.methods import method
 from rllib_conv.common.run_folders import EVAL_FILE, REPLICA_PREFIX, TRAIN, replica_folder
 from rllib_conv.envs.oracles import has_oracle
@@ -36,7 +36,7 @@ from rllib_conv.training.algorithm import Replica, build_algorithm
 from rllib_conv.training.callbacks import STEPS_DONE, STEPS_TOTAL
 from rllib_conv.training.ego_setup import EgoSetup, resolve
 from rllib_conv.training.evaluate import ego_head_partner, player_return
-from rllib_conv.training.experiment import ExperimentConfig, validate
+from rllib_conv.training.experiment import ExperimentConfig
 from rllib_conv.training.maml import MetaTrainer
 from rllib_conv.training.marginal_distance import marginal_distances, marginal_states
 from rllib_conv.training.replica_export import export_replica, replica_module
@@ -180,20 +180,21 @@ def replica_param_space(raw: dict[str, Any]) -> dict[str, Any]:
 
 
 def run(
-    raw: dict[str, Any],
+    config: Checked[ExperimentConfig],
     storage: str | Path = "runs",
     address: str | None = None,
     progress: str = "lines",
     resume: bool = False,
     loggers: Sequence[str] = (),
 ) -> tune.ResultGrid:
-    """Run the experiment `raw` (already validated by `experiment.load`) through Tune; return its results.
+    """Run the experiment `config` (checked: `experiment.load`, `experiment.checked`) through Tune; return its results.
 
     Results go to `storage/<name>/`, with the experiment's config in `experiment.yaml`;
     running the same experiment again continues it (see `tuning.fit` for `progress`,
     `resume` and `loggers`).
     """
-    first = _checked(raw)[0]
+    first = _resolved(config)
+    raw = config.raw
     return fit(
         EgoTrainable,
         raw,
@@ -208,12 +209,12 @@ def run(
     )
 
 
-def _checked(raw: dict[str, Any]) -> list[ExperimentConfig]:
-    """The experiment's variants, each resolved: unknown population, wrong seat, bad env config fail before anything is written."""
-    variants = validate(raw)
-    for exp in variants:
+def _resolved(config: Checked[ExperimentConfig]) -> ExperimentConfig:
+    """The experiment's first variant, after resolving every variant: unknown population, wrong seat, bad env config fail
+    before anything is written."""
+    for exp in config.variants:
         resolve(exp)
-    return variants
+    return config.first
 
 
 def _checkpoints(exp: ExperimentConfig) -> tune.CheckpointConfig:
@@ -241,23 +242,27 @@ def _unfinished(job: dict[str, Any]) -> dict[str, Any] | None:
 
 
 def train_stage(
-    raws: list[dict[str, Any]], storage: str | Path, address: str | None = None, label: str = "train", loggers: Sequence[str] = ()
+    configs: list[Checked[ExperimentConfig]],
+    storage: str | Path,
+    address: str | None = None,
+    label: str = "train",
+    loggers: Sequence[str] = (),
 ) -> list[str]:
-    """Train every experiment of `raws` in one Tune run (its trials spread over the cluster); return the experiments trained now.
+    """Train every experiment of `configs` (checked) in one Tune run (its trials spread over the cluster); return the experiments trained now.
 
     Each experiment's egos land where `run` puts them, `storage/<name>/<point>/seed=<s>/`,
     with its config in `storage/<name>/experiment.yaml` (a different experiment there is an
     error). Egos already trained are skipped (an experiment with more seeds than an earlier
     run trains the new seeds only). The Tune run itself is
-    `storage/train-stage-<hash>/`, named after every job of `raws`: run again after an
+    `storage/train-stage-<hash>/`, named after every job of `configs`: run again after an
     interruption it continues (finished trials kept, interrupted ones from their checkpoints).
     """
     storage = Path(storage).resolve()
-    exps = validated(raws, lambda raw: _checked(raw)[0], "train")
+    exps = validated(configs, _resolved, "train")
     jobs, names = [], [exp.name for exp in exps]
-    for raw, exp in zip(raws, exps):
-        check_spec(storage / exp.name, raw, grows="seed")  # more seeds later: the new ones train, the rest are kept
-        jobs += training_jobs(raw, storage / exp.name)
+    for config, exp in zip(configs, exps):
+        check_spec(storage / exp.name, config.raw, grows="seed")  # more seeds later: the new ones train, the rest are kept
+        jobs += training_jobs(config.raw, storage / exp.name)
     todo = [left for job in jobs if (left := _unfinished(job))]
     if not todo:
         return []

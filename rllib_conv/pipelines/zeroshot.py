@@ -28,7 +28,7 @@ from ray import tune
 from rllib_conv import envs, partners
 from rllib_conv.common import methods
 from rllib_conv.common.atomic_files import replaced_atomically
-from rllib_conv.common.config_files import validate
+from rllib_conv.common.config_files import Checked
 from rllib_conv.common.run_folders import RL_MODULE_DIR, ZEROSHOT, trial_folders
 from rllib_conv.common.seeds import stream_seed
 from rllib_conv.modules.mlp import mlp, seeded_generator
@@ -235,19 +235,19 @@ def reset_logits_state(task_state: dict[str, torch.Tensor], seed: int) -> dict[s
 
 
 def run_zeroshots(
-    raws: list[dict[str, Any]],
+    configs: list[Checked[ZeroShotConfig]],
     out: str | Path = "zeroshot",
     storage: str | Path = "runs",
     address: str | None = None,
     label: str | None = None,
     loggers: Sequence[str] = (),
 ) -> dict[str, pd.DataFrame]:
-    """Run the three steps for every run of every zero-shot config in `raws`, in one Tune run; write and return each config's table by name.
+    """Run the three steps for every run of every zero-shot config in `configs` (checked), in one Tune run; write and return each config's table by name.
 
     One row per (run, test partner). One config runs as the Tune experiment `zeroshot-<name>`,
     several as `zeroshot-stage-<hash>`; `label` names the stage in its progress line.
     """
-    cfgs = validated(raws, lambda raw: validate(raw, schema=ZeroShotConfig)[0], "zero-shot")
+    cfgs = validated(configs, lambda config: config.first, "zero-shot")
     runs = [[str(t.resolve()) for run in cfg.runs for t in trial_folders(run)] for cfg in cfgs]
     plans = {
         (i, run): zeroshot_plan(cfg, run) for i, (cfg, rs) in enumerate(zip(cfgs, runs)) for run in rs
@@ -265,15 +265,15 @@ def run_zeroshots(
         table=RESULTS_TABLE,
         manifest_key="new_population",
     )
-    return run_packed(stage, raws, cfgs, runs, key, out, storage, address, label, loggers)
+    return run_packed(stage, [config.raw for config in configs], cfgs, runs, key, out, storage, address, label, loggers)
 
 
 def run_zeroshot(
-    raw: dict[str, Any],
+    config: Checked[ZeroShotConfig],
     out: str | Path = "zeroshot",
     storage: str | Path = "runs",
     address: str | None = None,
     loggers: Sequence[str] = (),
 ) -> pd.DataFrame:
-    """Run the three steps for every run in `raw`; write and return one row per (run, test partner)."""
-    return next(iter(run_zeroshots([raw], out, storage, address, loggers=loggers).values()))
+    """Run the three steps for every run of the zero-shot config `config` (checked); write and return one row per (run, test partner)."""
+    return next(iter(run_zeroshots([config], out, storage, address, loggers=loggers).values()))

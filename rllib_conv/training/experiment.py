@@ -13,7 +13,7 @@ from typing import Any
 from pydantic import Field, model_validator
 
 from rllib_conv.common import config_files
-from rllib_conv.common.config_files import Strict
+from rllib_conv.common.config_files import Checked, Strict
 from rllib_conv.common.methods import MethodName, method
 from rllib_conv.common.run_folders import CONFIG_FILE, checkpoints
 from rllib_conv.common.sealed import verify_file
@@ -100,11 +100,11 @@ def check_trial(trial: str | Path) -> ExperimentConfig:
     return exp
 
 
-def load(path: str | Path, overrides: list[str] = ()) -> dict[str, Any]:
-    """Read an experiment YAML with `--set` overrides, validated (every grid combination); the raw dict for Tune."""
-    return config_files.load(path, overrides, schema=ExperimentConfig)
+def load(path: str | Path, overrides: list[str] = ()) -> Checked[ExperimentConfig]:
+    """Read an experiment YAML with `--set` overrides, checked: the raw dict for Tune and every grid combination validated."""
+    return config_files.load_checked(path, overrides, schema=ExperimentConfig)
 
 
-def validate(raw: dict[str, Any], source: str = "config") -> list[ExperimentConfig]:
-    """Every grid combination of the experiment `raw`, validated."""
-    return config_files.validate(raw, source, schema=ExperimentConfig)
+def checked(raw: dict[str, Any], source: str = "config") -> Checked[ExperimentConfig]:
+    """The experiment `raw`, checked: every grid combination validated (ValueError naming `source` and the bad key)."""
+    return config_files.checked(raw, ExperimentConfig, source)

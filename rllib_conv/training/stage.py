@@ -3,7 +3,8 @@
 A stage runs the configs of one pipeline (one command's, or a whole `reproduce` stage's) as
 ONE Tune run, so no core idles between configs. Whatever the pipeline, that is:
 
-1. validate every config, their names unique, before anything is written (`validated`);
+1. take every config (checked where it entered: `config_files.Checked`) with what the
+   pipeline resolves of it, their names unique, before anything is written (`validated`);
 2. share each config's units (seeds, adaptation curves, trained egos, self-play pairs) out
    into jobs, one trial each: units that can be replicas of one algorithm share a trial
    (`packed_jobs`, by `packs.packs`);
@@ -41,6 +42,7 @@ from rllib_conv.training.tuning import fit, job_param_space, job_units, trial_jo
 
 T = TypeVar("T")
 C = TypeVar("C")
+R = TypeVar("R")
 
 # A packed job (`packed_jobs`): the index of its config among the stage's, and that config.
 JOB_INDEX = "index"
@@ -86,12 +88,12 @@ class Stage:
         return stage_run_name(self.name, names, spec)
 
 
-def validated(raws: list[dict[str, Any]], check: Callable[[dict[str, Any]], C], what: str) -> list[C]:
-    """Every config of `raws` as `check` returns it (it raises ValueError on a bad one); ValueError unless their names differ.
+def validated(configs: list[R], check: Callable[[R], C], what: str) -> list[C]:
+    """Every config of `configs` as `check` returns it (it raises ValueError on a bad one); ValueError unless their names differ.
 
     `what` names the configs in that error ("adapt", "zero-shot").
     """
-    cfgs = [check(raw) for raw in raws]
+    cfgs = [check(config) for config in configs]
     names = [cfg.name for cfg in cfgs]  # type: ignore[attr-defined]
     if len(set(names)) < len(names):
         raise ValueError(f"{what} configs must have different names; got {names}")

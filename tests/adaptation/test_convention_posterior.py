@@ -11,6 +11,7 @@ import pytest
 
 from rllib_conv import envs
 from rllib_conv.adaptation.convention_posterior import ConventionPosterior, PosteriorPlayer
+from rllib_conv.common.config_files import checked
 from rllib_conv.common.run_folders import trial_folders
 from rllib_conv.envs.bandit.keys import bandit_context
 from rllib_conv.envs.blocks import BLUE, HIDDEN, RED, encode_observation
@@ -182,7 +183,7 @@ def test_adapting_to_a_training_convention_plays_its_head_after_one_update(bandi
         "head_init": "posterior",
         "steps": 64,
     }
-    curves = run_adaptation(raw, out=tmp_path, storage=tmp_path / "runs")
+    curves = run_adaptation(checked(raw, AdaptConfig), out=tmp_path, storage=tmp_path / "runs")
     assert curves["steps"].tolist() == [0, 16, 32, 48, 64]
     assert abs(curves["exact_return"].iloc[0] - 0.75) < 0.05  # the prior: half the symmetric contexts right
     assert (curves["exact_return"].iloc[1:] >= 0.95).all()
@@ -190,7 +191,7 @@ def test_adapting_to_a_training_convention_plays_its_head_after_one_update(bandi
     # With a lower bar the near-certain convention's head (and its task module) restart the adapting ego,
     # which then plays it and keeps it under PPO.
     raw = {**raw, "name": "q", "posterior": {"handover": 0.6}}
-    curves = run_adaptation(raw, out=tmp_path, storage=tmp_path / "runs")
+    curves = run_adaptation(checked(raw, AdaptConfig), out=tmp_path, storage=tmp_path / "runs")
     assert (curves["exact_return"].iloc[1:] >= 0.95).all()
     (trial_rows,) = [pd.read_csv(f) for f in (tmp_path / "runs" / "adapt-q").glob("*/curves.csv")]
     assert trial_rows["picked"].dropna().unique().tolist() == ["ego@hand-train-2"]
@@ -209,8 +210,8 @@ def narrow_ego(ray_session, tmp_path_factory) -> tuple[str, Path]:
     )
     manifest = folder / "narrow.json"
     pop.save(manifest)
-    raw = experiment.load("tune_configs/bandit_modular.yaml", ["name=narrow", f"population={manifest}", "run.timesteps=4096"])
-    results = run(raw, storage=folder / "runs")
+    config = experiment.load("tune_configs/bandit_modular.yaml", ["name=narrow", f"population={manifest}", "run.timesteps=4096"])
+    results = run(config, storage=folder / "runs")
     assert not results.errors
     return str(trial_folders(results[0].path)[0]), folder
 
@@ -219,8 +220,10 @@ def narrow_ego(ray_session, tmp_path_factory) -> tuple[str, Path]:
 def test_a_partner_following_no_known_convention_falls_back_to_fine_tuning(narrow_ego, tmp_path) -> None:
     trial, _ = narrow_ego
     common = {"runs": [trial], "split": "test", "steps": 480, "seed": 5}
-    plain = run_adaptation({"name": "fresh", **common}, out=tmp_path, storage=tmp_path / "runs")
-    post = run_adaptation({"name": "posterior", "head_init": "posterior", **common}, out=tmp_path, storage=tmp_path / "runs")
+    plain = run_adaptation(checked({"name": "fresh", **common}, AdaptConfig), out=tmp_path, storage=tmp_path / "runs")
+    post = run_adaptation(
+        checked({"name": "posterior", "head_init": "posterior", **common}, AdaptConfig), out=tmp_path, storage=tmp_path / "runs"
+    )
     assert post["steps"].tolist() == plain["steps"].tolist()
     assert "picked" not in post or post["picked"].isna().all()  # no known convention is handed over
     # Context 0 is novel: the posterior leaves it to the adapting head, which PPO trains as the plain method's
@@ -251,8 +254,10 @@ def test_blocks_adaptation_plays_the_best_response_to_a_recombined_convention_af
     # steps the adapting ego puts red on every cell at move 1, the partner answers, and the plan against the
     # prediction scores 20 on every goal; the plain method, from the same ego, is far from it.
     common = {"runs": [blocks_ego], "split": "test", "partners": ["perm-1032"], "steps": 1280, "episodes": 40}
-    post = run_adaptation({"name": "posterior", "head_init": "posterior", **common}, out=tmp_path, storage=tmp_path / "runs")
-    plain = run_adaptation({"name": "fresh", **common}, out=tmp_path, storage=tmp_path / "runs")
+    post = run_adaptation(
+        checked({"name": "posterior", "head_init": "posterior", **common}, AdaptConfig), out=tmp_path, storage=tmp_path / "runs"
+    )
+    plain = run_adaptation(checked({"name": "fresh", **common}, AdaptConfig), out=tmp_path, storage=tmp_path / "runs")
     # Before, after one and two updates of exactly the protocol's 640 env steps (each replica's own moves, not
     # RLlib's per-module counts, which count the partner's final observation too: 744 per update on blocks).
     assert post["steps"].tolist() == plain["steps"].tolist() == [0, 640, 1280]

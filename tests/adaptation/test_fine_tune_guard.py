@@ -8,6 +8,7 @@ import pandas as pd
 import pytest
 
 from rllib_conv.adaptation.fine_tune_guard import FineTuneGuard, measured_better
+from rllib_conv.common.config_files import checked
 from rllib_conv.pipelines.adapt import run_adaptation
 from rllib_conv.pipelines.adapt_config import AdaptConfig
 
@@ -42,7 +43,7 @@ def test_a_guard_with_a_picked_head_is_refused() -> None:
 
 def _curves(raw: dict, tmp_path: Path) -> tuple[pd.DataFrame, pd.DataFrame]:
     """The adaptation CSV of `raw` and its pack's own rows (which say whether the prior was kept)."""
-    curves = run_adaptation(raw, out=tmp_path, storage=tmp_path / "runs")
+    curves = run_adaptation(checked(raw, AdaptConfig), out=tmp_path, storage=tmp_path / "runs")
     (rows,) = [pd.read_csv(f) for f in (tmp_path / "runs" / f"adapt-{raw['name']}").glob("*/curves.csv")]
     return curves, rows
 

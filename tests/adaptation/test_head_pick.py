@@ -11,6 +11,7 @@ import yaml
 
 from rllib_conv import envs
 from rllib_conv.adaptation.head_pick import pick_head
+from rllib_conv.common.config_files import checked
 from rllib_conv.common.sealed import seal_file
 from rllib_conv.partners.bandit import BanditConventionPartner
 from rllib_conv.partners.blocks import BlocksLeader, PermutationPartner, derangements
@@ -105,7 +106,7 @@ def test_adapting_to_a_known_convention_picks_its_head(bandit_egos, tmp_path) ->
         "pick_steps": 64,
         "steps": 96,
     }
-    curves = run_adaptation(raw, out=tmp_path, storage=tmp_path / "runs")
+    curves = run_adaptation(checked(raw, AdaptConfig), out=tmp_path, storage=tmp_path / "runs")
     assert curves["steps"].tolist() == [0, 64, 80, 96]  # picking is charged as env steps
     assert abs(curves["exact_return"].iloc[0] - 0.75) < 0.05
     assert curves["exact_return"].iloc[1] >= 0.95  # right after picking, before any update

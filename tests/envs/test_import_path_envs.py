@@ -8,6 +8,7 @@ import pytest
 
 from rllib_conv import envs, partners
 from rllib_conv.pipelines.train import run
+from rllib_conv.training import experiment
 
 PATH = "rllib_conv.envs.bandit:CollaborativeBanditEnv"
 
@@ -33,7 +34,7 @@ def test_a_population_of_an_import_path_game_trains_through_tune(ray_session, tm
         "ppo": {"rollout_per_partner": 16},
         "run": {"timesteps": 128},
     }
-    results = run(raw, storage=tmp_path / "runs")
+    results = run(experiment.checked(raw), storage=tmp_path / "runs")
     assert not results.errors
     evaluation = json.loads((tmp_path / "runs" / "path").glob("*/seed=0/eval.json").__next__().read_text())
     assert 0.0 <= evaluation["eval/exact/hand-train-0"] <= 1.0

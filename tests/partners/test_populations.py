@@ -115,3 +115,10 @@ def test_a_population_reference_keeps_names_and_makes_paths_absolute(tmp_path, m
     }
     assert with_absolute_paths({"new_population": "pop", "seed": 1}, "new_population") == {"new_population": pop, "seed": 1}
     assert with_absolute_paths({"seed": 1}, "population") == {"seed": 1}
+
+
+def test_an_empty_population_name_is_refused_not_read_as_the_working_folder(tmp_path, monkeypatch) -> None:
+    monkeypatch.chdir(tmp_path)
+    for name in ("", "  "):
+        with pytest.raises(ValueError, match="population must name a built-in"):
+            partners.get(name)

@@ -10,11 +10,13 @@ import pytest
 import torch
 
 from rllib_conv import partners
+from rllib_conv.common.config_files import checked
 from rllib_conv.common.sealed import seal_file
 from rllib_conv.modules import AGG_HEAD_ID, TASK_ID, ego_id
 from rllib_conv.pipelines.adapt import CURVE_COLUMNS, adapt_curve, run_adaptation
 from rllib_conv.pipelines.adapt_config import AdaptConfig
 from rllib_conv.pipelines.zeroshot import run_zeroshot
+from rllib_conv.pipelines.zeroshot_config import ZeroShotConfig
 from rllib_conv.training.algorithm import build_ppo_config
 from rllib_conv.training.ego_setup import resolve
 from rllib_conv.training.evaluate import player_return
@@ -34,7 +36,9 @@ def test_adaptation_adds_a_fresh_head_and_reaches_the_new_partner(bandit_egos, t
     assert setup.exp.lam == 0.0 and setup.exp.ppo.num_epochs == 50 and setup.exp.ppo.rollout_per_partner == 16
 
     curves = run_adaptation(
-        {"name": "a", "runs": [str(trial)], "partners": ["hand-test-1"]}, out=tmp_path, storage=tmp_path / "runs"
+        checked({"name": "a", "runs": [str(trial)], "partners": ["hand-test-1"]}, AdaptConfig),
+        out=tmp_path,
+        storage=tmp_path / "runs",
     )
     assert list(curves.columns) == CURVE_COLUMNS
     assert curves["steps"].tolist() == list(range(0, 241, 16))
@@ -51,8 +55,10 @@ def test_curves_packed_together_equal_curves_run_one_at_a_time(bandit_egos, tmp_
     """Three curves as replicas of one algorithm give the curves each gives alone (float tolerance)."""
     trial = bandit_egos["bandit-s2-hand"].path
     raw = {"name": "p", "runs": [trial], "partners": ["hand-test-0", "hand-test-1", "hand-test-2"], "steps": 64, "episodes": 50}
-    packed = run_adaptation(raw, out=tmp_path / "packed", storage=tmp_path / "runs")
-    alone = run_adaptation({**raw, "name": "a", "max_pack": 1}, out=tmp_path / "alone", storage=tmp_path / "runs")
+    packed = run_adaptation(checked(raw, AdaptConfig), out=tmp_path / "packed", storage=tmp_path / "runs")
+    alone = run_adaptation(
+        checked({**raw, "name": "a", "max_pack": 1}, AdaptConfig), out=tmp_path / "alone", storage=tmp_path / "runs"
+    )
     assert (
         len(list((tmp_path / "runs" / "adapt-p").glob("AdaptTrainable_*")))
         < len(list((tmp_path / "runs" / "adapt-a").glob("AdaptTrainable_*")))
@@ -67,8 +73,10 @@ def test_bandit_curves_without_sampled_episodes_keep_their_exact_returns(bandit_
     """`episodes: 0` plays no evaluation episodes: the same exact returns (evaluation draws nothing training uses), no sampled ones."""
     trial = bandit_egos["bandit-s2-hand"].path
     raw = {"name": "e", "runs": [trial], "partners": ["hand-test-0", "hand-test-1"], "steps": 48, "episodes": 50}
-    sampled = run_adaptation(raw, out=tmp_path / "sampled", storage=tmp_path / "runs")
-    exact = run_adaptation({**raw, "name": "x", "episodes": 0}, out=tmp_path / "exact", storage=tmp_path / "runs")
+    sampled = run_adaptation(checked(raw, AdaptConfig), out=tmp_path / "sampled", storage=tmp_path / "runs")
+    exact = run_adaptation(
+        checked({**raw, "name": "x", "episodes": 0}, AdaptConfig), out=tmp_path / "exact", storage=tmp_path / "runs"
+    )
     assert exact["mean_return"].isna().all() and exact["stderr"].isna().all() and sampled["mean_return"].notna().all()
     pd.testing.assert_series_equal(exact["exact_return"], sampled["exact_return"])
     assert sampled["exact_return"].nunique() > 2  # the curves moved
@@ -101,7 +109,7 @@ def test_scratch_starts_from_nothing(bandit_egos, tmp_path) -> None:
     curve = adapt_curve(AdaptConfig(runs=[trial], method="scratch"), trial, "hand-test-0")
     assert curve.load == {} and curve.setup.head_ids == [AGG_HEAD_ID]
     curves = run_adaptation(
-        {"name": "s", "runs": [trial], "partners": ["hand-test-0"], "method": "scratch", "steps": 32},
+        checked({"name": "s", "runs": [trial], "partners": ["hand-test-0"], "method": "scratch", "steps": 32}, AdaptConfig),
         out=tmp_path,
         storage=tmp_path / "runs",
     )
@@ -113,7 +121,9 @@ def test_scratch_starts_from_nothing(bandit_egos, tmp_path) -> None:
 def test_zero_shot_composes_new_task_module_with_test_partner_heads(bandit_egos, tmp_path) -> None:
     trial = bandit_egos["bandit-s1-hand"].path
     table = run_zeroshot(
-        {"name": "z", "runs": [trial], "head_steps": 1024, "task_steps": 4096}, out=tmp_path, storage=tmp_path / "runs"
+        checked({"name": "z", "runs": [trial], "head_steps": 1024, "task_steps": 4096}, ZeroShotConfig),
+        out=tmp_path,
+        storage=tmp_path / "runs",
     )
     assert sorted(table["partner"]) == [f"hand-test-{k}" for k in range(4)]
     assert (table["exact_return"] >= 0.9).all(), table
@@ -124,7 +134,6 @@ def test_zero_shot_refuses_non_modular_runs(tmp_path) -> None:
     import yaml
 
     from rllib_conv.pipelines.zeroshot import zeroshot_plan
-    from rllib_conv.pipelines.zeroshot_config import ZeroShotConfig
 
     trial = tmp_path / "trial"
     (trial / "checkpoint_000000").mkdir(parents=True)
@@ -136,7 +145,6 @@ def test_zero_shot_refuses_non_modular_runs(tmp_path) -> None:
 @pytest.mark.parametrize("method", ["modular", "no_task_logits"])
 def test_zero_shot_steps_carry_their_settings(method: str) -> None:
     from rllib_conv.pipelines.zeroshot import step_experiments
-    from rllib_conv.pipelines.zeroshot_config import ZeroShotConfig
 
     modular = method == "modular"
     trained = ExperimentConfig(
@@ -215,6 +223,6 @@ def test_maml_trains_through_the_pipeline(ray_session, tmp_path) -> None:
         "ppo": {"rollout_per_partner": 16, "num_epochs": 1},
         "run": {"timesteps": 256},
     }
-    result = run(raw, storage=tmp_path)[0]
+    result = run(checked(raw, ExperimentConfig), storage=tmp_path)[0]
     assert result.error is None and result.metrics["env_steps"] >= 256
     assert np.isfinite(result.metrics["eval/marginal_distance/all"])

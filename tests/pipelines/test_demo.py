@@ -6,13 +6,15 @@ import re
 
 import pytest
 
-from rllib_conv.pipelines.demo import demo
+from rllib_conv.common.resources import config_file
+from rllib_conv.pipelines.demo import DEMO_CONFIG, demo
+from rllib_conv.training import experiment
 
 pytestmark = pytest.mark.slow  # every test here trains (RLlib, Tune or `rllib-conv` subprocesses)
 
 
 def test_demo_trains_then_prints_returns_and_marginals(ray_session, tmp_path, capsys) -> None:
-    demo(storage=tmp_path, overrides=["run.timesteps=512"])
+    demo(experiment.load(config_file(DEMO_CONFIG), ["name=demo", "run.timesteps=512"]), storage=tmp_path)
     out = capsys.readouterr().out
     header = re.search(r"Modular ego \(lam 0\.5\) after (\d+) env steps \((\d+) s\), run folder (\S+)", out)
     assert header, out

@@ -44,7 +44,8 @@ def selfplay_raw(**overrides) -> dict:
 def trained(ray_session, tmp_path_factory):
     """A 3-pair bandit self-play population (2 train, 1 test), trained once for this module."""
     root = tmp_path_factory.mktemp("selfplay")
-    population, report = train_population(selfplay_raw(name="sp-test"), out=root / "pops", storage=root / "runs")
+    config = config_files.checked(selfplay_raw(name="sp-test"), SelfPlayConfig)
+    population, report = train_population(config, out=root / "pops", storage=root / "runs")
     return root, population, report
 
 
@@ -122,12 +123,13 @@ def test_pairs_that_miss_the_gate_are_reported_not_kept(ray_session, tmp_path) -
             "gate": {"score": 0.95, "episodes": 100, "check_every": 1, "check_episodes": 50},
         }
     )
-    population, report = train_population(raw, out=tmp_path / "pops", storage=tmp_path / "runs")
+    config = config_files.checked(raw, SelfPlayConfig)
+    population, report = train_population(config, out=tmp_path / "pops", storage=tmp_path / "runs")
     assert report["passed"].tolist() == [False] and population.partners == []
     assert pd.read_csv(tmp_path / "pops" / "too-short" / "selfplay_report.csv")["passed"].tolist() == [False]
     # An existing population is never replaced by accident.
     with pytest.raises(ValueError, match="already exists"):
-        train_population(raw, out=tmp_path / "pops", storage=tmp_path / "runs")
+        train_population(config, out=tmp_path / "pops", storage=tmp_path / "runs")
 
 
 @pytest.mark.slow
@@ -142,9 +144,8 @@ def test_a_pair_trains_the_same_in_a_reused_worker(trained, tmp_path) -> None:
     assert later, "3 pairs on 2 CPUs: one worker should have run two of them"
     seed = later[0]["seed"]
     # The same pair (same seed) alone, in a fresh worker.
-    alone, _ = train_population(
-        selfplay_raw(name="alone", seed=seed, train_pairs=1, test_pairs=0), out=tmp_path / "pops", storage=tmp_path / "runs"
-    )
+    config = config_files.checked(selfplay_raw(name="alone", seed=seed, train_pairs=1, test_pairs=0), SelfPlayConfig)
+    alone, _ = train_population(config, out=tmp_path / "pops", storage=tmp_path / "runs")
     before, after = next(e for e in population.partners if e.seed == seed), alone.partners[0]
     for seat in (lambda e: e.build(), lambda e: partners.partner_from_spec(e.counterpart)):
         np.testing.assert_array_equal(seat(after).probs(OBS, MASK), seat(before).probs(OBS, MASK))
@@ -221,6 +222,6 @@ def test_crossplay_refuses_different_games() -> None:
 def test_selfplay_configs_are_valid() -> None:
     for name in ("selfplay_bandit", "selfplay_blocks", "selfplay_hanabi"):
         path = f"tune_configs/{name}.yaml"
-        cfg = config_files.validate(config_files.load(path, schema=SelfPlayConfig), path, schema=SelfPlayConfig)[0]
+        cfg = config_files.load_checked(path, schema=SelfPlayConfig).first
         assert cfg.gate.episodes == 1000
     assert yaml.safe_load(open("tune_configs/selfplay_blocks.yaml"))["gate"]["score"] == 19.0

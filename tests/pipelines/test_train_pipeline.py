@@ -49,8 +49,8 @@ def test_modular_ego_learns_conventions_and_marginals_within_paper_budget(bandit
 
 @pytest.mark.slow
 def test_one_progress_line_per_iteration(ray_session, tmp_path, capfd) -> None:
-    raw = experiment.load("tune_configs/bandit_modular.yaml", ["run.timesteps=512", "name=progress", "model.hidden=8"])
-    run(raw, storage=tmp_path)
+    config = experiment.load("tune_configs/bandit_modular.yaml", ["run.timesteps=512", "name=progress", "model.hidden=8"])
+    run(config, storage=tmp_path)
     lines = [ln for ln in capfd.readouterr().out.splitlines() if "] iter" in ln]
     assert [ln.split("iter")[1].split()[0] for ln in lines] == ["1", "2"]
     assert "steps      256" in lines[0] and "steps      512" in lines[1] and "reg " in lines[1]
@@ -99,8 +99,10 @@ def test_head_penalty_hands_the_rules_to_the_task_module_and_keeps_the_conventio
         return head_size(outputs[:, rule]).item(), head_size(outputs[:, ~rule]).item(), task_probs(module, obs, mask)
 
     plain_rule, _, _ = head_sizes(bandit_egos["bandit-s2-hand"].path)
-    raw = experiment.load("tune_configs/bandit_modular.yaml", ["name=penalised", "head_l2=0.05", "seed={grid_search: [0, 1, 2]}"])
-    result = run(raw, storage=tmp_path)[0]
+    config = experiment.load(
+        "tune_configs/bandit_modular.yaml", ["name=penalised", "head_l2=0.05", "seed={grid_search: [0, 1, 2]}"]
+    )
+    result = run(config, storage=tmp_path)[0]
     assert plain_rule > 1.0  # without the penalty the heads also push the rule arms
     for seed in (0, 1, 2):
         rule_size, convention_size, task = head_sizes(f"{result.path}/seed={seed}")
@@ -127,10 +129,10 @@ def test_a_recorded_experiment_may_grow_its_seeds_but_not_change(tmp_path) -> No
 def test_a_stage_job_is_cut_to_fill_the_cores_and_each_seed_trains_as_alone(ray_session, tmp_path) -> None:
     # One job of 2 seeds on the session's 2 CPUs runs as 2 trials (packs.spread_over_cores).
     raw = tiny_experiment("cut")
-    assert train_stage([{**raw, "seed": {"grid_search": [0, 1]}}], storage=tmp_path / "both") == ["cut"]
+    assert train_stage([experiment.checked({**raw, "seed": {"grid_search": [0, 1]}})], storage=tmp_path / "both") == ["cut"]
     (stage,) = (tmp_path / "both").glob("train-stage-*")
     assert len([p for p in stage.iterdir() if p.is_dir() and p.name.startswith("EgoTrainable")]) == 2
-    assert train_stage([{**raw, "seed": {"grid_search": [1]}}], storage=tmp_path / "alone") == ["cut"]
+    assert train_stage([experiment.checked({**raw, "seed": {"grid_search": [1]}})], storage=tmp_path / "alone") == ["cut"]
 
     def seed_eval(root, seed):
         (folder,) = [p for p in (root / "cut").rglob(f"seed={seed}") if p.is_dir()]
@@ -144,14 +146,14 @@ def test_a_stage_job_is_cut_to_fill_the_cores_and_each_seed_trains_as_alone(ray_
 @pytest.mark.slow
 def test_a_train_stage_with_more_seeds_trains_the_new_seeds_only(ray_session, tmp_path) -> None:
     raw = tiny_experiment("grown")
-    assert train_stage([{**raw, "seed": {"grid_search": [0]}}], storage=tmp_path) == ["grown"]
+    assert train_stage([experiment.checked({**raw, "seed": {"grid_search": [0]}})], storage=tmp_path) == ["grown"]
     first = tmp_path / "grown"
     (seed0,) = [p for p in first.rglob("seed=0") if p.is_dir()]
     before = {p: p.stat().st_mtime_ns for p in seed0.rglob("*") if p.is_file()}
-    assert train_stage([{**raw, "seed": {"grid_search": [0, 1]}}], storage=tmp_path) == ["grown"]
+    assert train_stage([experiment.checked({**raw, "seed": {"grid_search": [0, 1]}})], storage=tmp_path) == ["grown"]
     assert sorted(p.name for p in first.rglob("seed=*") if p.is_dir()) == ["seed=0", "seed=1"]
     assert {p: p.stat().st_mtime_ns for p in seed0.rglob("*") if p.is_file()} == before  # seed 0 was not trained again
-    assert train_stage([{**raw, "seed": {"grid_search": [0, 1]}}], storage=tmp_path) == []
+    assert train_stage([experiment.checked({**raw, "seed": {"grid_search": [0, 1]}})], storage=tmp_path) == []
 
 
 @pytest.mark.slow
@@ -161,8 +163,9 @@ def test_a_manifest_path_relative_to_the_working_folder_trains(ray_session, tmp_
     partners.get("bandit-s1-hand").save(tmp_path / "pop" / "population.json")
     monkeypatch.chdir(tmp_path)
     raw = {**tiny_experiment("relative"), "population": "pop"}
-    assert train_stage([raw], storage="runs") == ["relative"]
+    assert train_stage([experiment.checked(raw)], storage="runs") == ["relative"]
     (config,) = (tmp_path / "runs" / "relative").rglob(CONFIG_FILE)
     assert yaml.safe_load(config.read_text())["population"] == str((tmp_path / "pop").resolve())
-    results = run({**raw, "name": "relative-run", "population": {"grid_search": ["pop", "bandit-s1-hand"]}}, storage="runs")
+    grid = {**raw, "name": "relative-run", "population": {"grid_search": ["pop", "bandit-s1-hand"]}}
+    results = run(experiment.checked(grid), storage="runs")
     assert len(results) == 2 and not results.errors

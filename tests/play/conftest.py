@@ -38,7 +38,7 @@ def study_ego(ray_session, tmp_path_factory) -> Path:
     from rllib_conv.pipelines.train import run
     from rllib_conv.training.experiment import ExperimentConfig
 
-    raw = config_files.from_dict(
+    config = config_files.checked(
         {
             "name": "play-ego",
             "population": "bandit-user-study",
@@ -47,9 +47,9 @@ def study_ego(ray_session, tmp_path_factory) -> Path:
             "run": {"timesteps": 1536, "eval_episodes": 20},
             "ppo": {"num_epochs": 5},
         },
-        schema=ExperimentConfig,
+        ExperimentConfig,
     )
-    results = run(raw, storage=tmp_path_factory.mktemp("play-egos"))
+    results = run(config, storage=tmp_path_factory.mktemp("play-egos"))
     assert not results.errors
     return trial_folders(results[0].path)[0]  # the trained ego's folder, wherever the trial keeps it
 

@@ -20,5 +20,6 @@ OVERCOOKED = GameRecord(
     # Adaptation to a new partner: one update per 4 episodes, for 40 episodes.
     adaptation=AdaptDefaults(every=1_600, steps=16_000),
     max_score=None,  # no stated best: the score grows with deliveries until the horizon
-    partners=("rllib_conv.partners.overcooked_cooks",),
+    # Scripted cooks; the human proxies' populations (`overcooked-<layout>-bc`, `-hproxy`), trained into the user's cache.
+    partners=("rllib_conv.partners.overcooked_cooks", "rllib_conv.partners.overcooked"),
 )

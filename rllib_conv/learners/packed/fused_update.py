@@ -30,8 +30,8 @@ from ray.rllib.core.learner.training_data import TrainingData
 from ray.rllib.evaluation.postprocessing import Postprocessing
 
 from rllib_conv.learners.drop_bootstrap_rows import DropBootstrapRows
-from rllib_conv.learners.packed.minibatches import CyclicMinibatchPlan, ModulePermuters, global_permute
 from rllib_conv.learners.packed.fused_step import FusedAdamStep, clip_segments
+from rllib_conv.learners.packed.minibatches import CyclicMinibatchPlan, ModulePermuters, global_permute
 from rllib_conv.learners.packed.rollout import Rollout, rollout_train_batch
 from rllib_conv.learners.ppo_loss import PPOLossTerms, ppo_loss
 from rllib_conv.learners.settings import LearnerSettings
