@@ -23,7 +23,7 @@ from rllib_conv.envs.convention_keys import convention_key
 from rllib_conv.envs.game import GameRecord
 from rllib_conv.envs.hanabi import HanabiEnv
 from rllib_conv.envs.hanabi.record import HANABI
-from rllib_conv.envs.registry import game, games, make, names, register, register_game, register_missing
+from rllib_conv.envs.registry import game, games, make, make_scored, names, register, register_game, register_missing
 
 for _record in (BANDIT, BLOCKS, HANABI):
     register_game(_record, builtin=True)
@@ -40,6 +40,7 @@ __all__ = [
     "game",
     "games",
     "make",
+    "make_scored",
     "names",
     "register",
     "register_game",

@@ -15,7 +15,7 @@ first use.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -53,6 +53,9 @@ class GameRecord:
     convention_key: KeyFn | None = None  # None: each move is its own situation
     best_response: BestResponseFactory | None = None  # None: the ego cannot plan against a partner model
     max_score: float | None = None  # the best score an episode can reach (report tables)
+    # Env settings every measured score uses, over the training ones (`registry.make_scored`): Overcooked
+    # trains on a shaped reward but is scored on soups delivered alone, as Carroll et al. report it.
+    scoring: dict[str, Any] = field(default_factory=dict)
     # Import paths of the modules that register its scripted partner kinds and built-in
     # populations: they sit in the partners layer, above this one, so the record names them
     # and `rllib_conv.partners` imports them.

@@ -118,6 +118,11 @@ def make(name: str, **config: Any) -> AECEnv | ParallelEnv:
     return build(**config)
 
 
+def make_scored(name: str, **config: Any) -> AECEnv | ParallelEnv:
+    """Build env `name` as every score is measured: `config` with its record's `scoring` settings over it (`GameRecord.scoring`)."""
+    return make(name, **{**config, **game(name).scoring})
+
+
 def _accepted_keys(build: EnvFactory) -> set[str] | None:
     """The keyword names `build` accepts, or None if it takes **kwargs (or cannot be inspected).
 

@@ -43,7 +43,7 @@ def crossplay(a: Population, b: Population, episodes: int = 100, seed: int = 0) 
             f"populations {a.name!r} and {b.name!r} are for different games or seats: "
             f"{a.env} {a.env_config} seat {a.partner_agent} vs {b.env} {b.env_config} seat {b.partner_agent}"
         )
-    env = envs.make(a.env, **a.env_config)
+    env = envs.make_scored(a.env, **a.env_config)
     ego_agent = next(x for x in env.possible_agents if x != a.partner_agent)
     partners_b = [(e.name, e.build()) for e in b.partners]
     rows = {}

@@ -126,7 +126,7 @@ def pair(cfg: PairConfig) -> pd.DataFrame:
     seats = [seat(text, cfg.seed) for text in cfg.seats]
     game, env_config = pair_game(seats, cfg.env, cfg.env_config)
     try:
-        env = envs.make(game, **env_config)
+        env = envs.make_scored(game, **env_config)
     except (TypeError, ValueError) as exc:
         if cfg.env_config is None:  # the seats' own settings: not the user's to fix
             raise

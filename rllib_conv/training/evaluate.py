@@ -83,7 +83,7 @@ def player_return(
     `episodes=0` plays nothing (`mean` and `stderr` NaN). ValueError for `episodes=0` elsewhere.
     """
     check_episodes(episodes, env_name, env_config)
-    env = envs.make(env_name, **env_config)
+    env = envs.make_scored(env_name, **env_config)
     out = {"mean": math.nan, "stderr": math.nan}
     if episodes:
         scores = play_episodes(env, {ego_agent: ego, partner_agent: partner}, episodes, seed)

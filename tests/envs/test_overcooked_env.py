@@ -251,3 +251,11 @@ def test_without_the_extra_the_name_says_how_to_install_it() -> None:
     )
     out = subprocess.run([sys.executable, "-c", hide], capture_output=True, text=True, check=True).stdout
     assert "pip install 'rllib-conv[overcooked]'" in out and out.strip().endswith("False")
+
+
+def test_scores_are_measured_on_soups_alone_whatever_the_training_shaping() -> None:
+    # Every measured score (evaluation, adaptation curves, pair, crossplay) builds its env through make_scored.
+    scored = envs.make_scored("overcooked", layout="cramped_room", shaping=1.0, shaping_horizon=1000)
+    assert scored.shaping_now() == 0.0 and scored.layout == "cramped_room"
+    assert envs.make("overcooked", layout="cramped_room", shaping=1.0).shaping_now() == 1.0
+    assert (envs.make_scored("bandit", symmetric=2).prizes == envs.make("bandit", symmetric=2).prizes).all()

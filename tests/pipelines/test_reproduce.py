@@ -220,6 +220,17 @@ def test_quick_reproduction_runs_every_stage_and_builds_the_report(ray_session, 
     assert "train: done before, skipped" in capsys.readouterr().out
 
 
+@pytest.mark.slow
+def test_quick_overcooked_reproduction_trains_adapts_to_held_out_cooks_and_reports(ray_session, tmp_path) -> None:
+    out = tmp_path / "repro"
+    assert main(["reproduce", "overcooked", "--quick", "--seeds", "1", "--out", str(out)]) == 0
+    game = out / "overcooked"
+    assert sorted(p.stem for p in game.glob("*.done")) == ["adapt", "selfplay", "train"]  # no oracle: no marginals
+    curves = pd.read_csv(game / "adaptation" / "overcooked-cramped_room-cooks__modular-lam0.5.csv")
+    assert curves["steps"].min() == 0 and curves["steps"].max() == 1600
+    assert "overcooked-cramped_room-cooks" in (out / "report" / "report.md").read_text()
+
+
 def test_redo_moves_a_stages_outputs_aside_and_runs_it_again(tmp_path, monkeypatch) -> None:
     logs: list[str] = []
     repro = Reproduction(narrow(plan_for("bandit"), ["bandit-s2-hand"], ["agg"]), tmp_path, log=logs.append)

@@ -20,6 +20,8 @@ OVERCOOKED = GameRecord(
     # Adaptation to a new partner: one update per 4 episodes, for 40 episodes.
     adaptation=AdaptDefaults(every=1_600, steps=16_000),
     max_score=None,  # no stated best: the score grows with deliveries until the horizon
+    # Trained with the shaped reward (factor 1; `shaping_horizon` in an env config anneals it); scored on soups alone.
+    scoring={"shaping": 0.0, "shaping_horizon": None},
     # Scripted cooks; the human proxies' populations (`overcooked-<layout>-bc`, `-hproxy`), trained into the user's cache.
     partners=("rllib_conv.partners.overcooked_cooks", "rllib_conv.partners.overcooked"),
 )
