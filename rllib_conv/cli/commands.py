@@ -257,8 +257,13 @@ def train(args: argparse.Namespace) -> None:
     sweep = args.command == "sweep"
     if sweep and args.resume and not (folder / SPEC_FILE).is_file():
         raise ValueError(f"--resume: {str(folder)!r} holds no sweep to resume (run without --resume to start it)")
+    # A misspelt name fails here, in a second, not after torch and Ray load; blamed on where it came from.
+    source = next((f"--set {s}" for s in reversed(args.set) if s.split("=", 1)[0].strip() == "population"), str(args.config))
     for population in dict.fromkeys(v.population for v in variants):
-        partners.get(population)  # a misspelt name fails here, in a second, not after torch and Ray load
+        try:
+            partners.get(population)
+        except ValueError as exc:
+            raise ValueError(f"{source}: {exc}") from None
     _note_reuse(folder, raw, egos=len(variants))
     import pandas as pd
 
