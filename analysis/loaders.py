@@ -28,6 +28,7 @@ from rllib_conv.common.run_folders import (
     EVAL_FILE,
     EXPERIMENT_SEPARATOR,
     GAME_MARKERS,
+    HELDOUT_FILE,
     MARGINALS_FILE,
     MARKER_SUFFIX,
     PLAN_FILE,
@@ -508,6 +509,20 @@ def load_selfplay_reports(root: str | Path) -> pd.DataFrame:
             table["passed"] = table["passed"].astype(str).str.lower().isin(["true", "1"])
             frames.append(table)
     return _concat(frames, SELFPLAY_COLUMNS)
+
+
+HELDOUT_COLUMNS = ["game", "agent", "seed", "player", "partner", "episodes", "mean_return", "stderr"]
+
+
+def load_heldout(root: str | Path) -> pd.DataFrame:
+    """The held-out evaluations (`<game>/heldout.csv`): one row per (game, agent, seed, partner). Columns `HELDOUT_COLUMNS`."""
+    frames = []
+    for game_dir in game_dirs(root):
+        if (game_dir / HELDOUT_FILE).is_file():
+            table = pd.read_csv(game_dir / HELDOUT_FILE)
+            table.insert(0, "game", game_of(game_dir))
+            frames.append(table)
+    return _concat(frames, HELDOUT_COLUMNS)
 
 
 def load_crossplay(root: str | Path) -> dict[str, pd.DataFrame]:

@@ -66,3 +66,22 @@ class TrainedEgo:
 
     path: str
     result: Any
+
+
+@pytest.fixture(scope="session")
+def short_human_cache(tmp_path_factory):
+    """An Overcooked cache holding cramped_room's 2019 trajectories cut to the first 150 logged steps of each trial.
+
+    Fetched through pip from the package registry (without it the tests using this fail, they
+    do not skip); nothing derived from the human data is written outside the test's temporary folder.
+    """
+    import pandas as pd
+
+    from rllib_conv.envs.overcooked import human_data
+
+    folder = tmp_path_factory.mktemp("proxies-cache")
+    human_data.fetch(folder)
+    for path in human_data.convert(folder, ["cramped_room"]).values():
+        frame = pd.read_parquet(path)
+        frame[frame["t"] < 150].to_parquet(path, index=False)
+    return folder

@@ -10,6 +10,7 @@ from analysis.report.context import Context
 from analysis.report.sections.adaptation import adaptation_section
 from analysis.report.sections.beyond import beyond_section
 from analysis.report.sections.differences import differences_section
+from analysis.report.sections.heldout import heldout_section
 from analysis.report.sections.marginals import marginals_section
 from analysis.report.sections.selfplay import selfplay_section
 from analysis.report.sections.status import status_section
@@ -39,6 +40,7 @@ def build_report(root: str | Path, out: str | Path | None = None, user_study: It
         adaptation_section(ctx),
         beyond_section(ctx),
         zeroshot_section(ctx),
+        heldout_section(ctx),
         marginals_section(ctx),
         user_study_section(ctx),
         training_section(ctx),

@@ -54,8 +54,8 @@ SELFPLAY_TRIAL_FILE = "selfplay.json"  # one self-play pair's outcome, in its tr
 
 # --- the stages and their Tune runs ---------------------------------------------------------
 # The stages of a reproduction, in order; all but `marginals` run as one Tune run each.
-SELFPLAY, TRAIN, ADAPT, ZEROSHOT, MARGINALS = "selfplay", "train", "adapt", "zeroshot", "marginals"
-STAGES: tuple[str, ...] = (SELFPLAY, TRAIN, ADAPT, ZEROSHOT, MARGINALS)
+SELFPLAY, TRAIN, ADAPT, ZEROSHOT, MARGINALS, HELDOUT = "selfplay", "train", "adapt", "zeroshot", "marginals", "heldout"
+STAGES: tuple[str, ...] = (SELFPLAY, TRAIN, ADAPT, ZEROSHOT, MARGINALS, HELDOUT)
 # One self-play, adapt or zero-shot config runs as the Tune run `<stage>-<name>`; several (a
 # `reproduce` stage) as one Tune run `<stage>-stage-<hash of their spec>`, whose trials write
 # their results into each config's own outputs. The train stage's run is always the latter:
@@ -78,6 +78,7 @@ CROSSPLAY_DIR = "crossplay"
 USER_STUDY_DIR = "user_study"
 SUPERSEDED_DIR = "superseded"
 MARGINALS_FILE = "marginals.csv"
+HELDOUT_FILE = "heldout.csv"  # the held-out evaluation: one row per (agent, seed, partner)
 MARKER_SUFFIX = ".done"
 # What marks a folder as one game of a reproduction.
 GAME_MARKERS: tuple[str, ...] = (PLAN_FILE, RUNS_DIR, ADAPTATION_DIR, ZEROSHOT_DIR, MARGINALS_FILE, POPULATIONS_DIR)

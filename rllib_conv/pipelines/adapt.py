@@ -276,7 +276,7 @@ class AdaptTrainable(AlgorithmTrainable):
             game, env_config = curve.setup.population.env, curve.setup.env_config
             budget = self.cfg.pick_steps or curve.setup.exp.ppo.rollout_per_partner
             pick = pick_head(
-                lambda: envs.make(game, **env_config),
+                lambda: envs.make_scored(game, **env_config),  # heads are picked by the score, as they are judged
                 players,
                 entry.build,
                 curve.setup.ego_agent,

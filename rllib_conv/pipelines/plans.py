@@ -69,6 +69,9 @@ class Plan:
     quick: bool = False
     # The report's "no worse" margin in the game's score units (None: 1% of the game's maximum score); declared before the run.
     no_worse_margin: float | None = None
+    # Population -> other populations whose test members the egos trained on it also adapt to (experiment `<other>__<label>`).
+    adapt_to: dict[str, list[str]] = field(default_factory=dict)
+    heldout: "HeldoutSpec | None" = None  # the held-out evaluation stage (`pipelines/heldout.py`), if any
 
 
 # --- the file's schema ------------------------------------------------------------------------
@@ -79,6 +82,40 @@ class AdaptVariantSpec(Strict):
 
     base: str
     settings: dict[str, Any] = Field(default_factory=dict)
+
+
+class HeldoutAgentSpec(Strict):
+    """One agent of the held-out evaluation: exactly one of its sources (see `pipelines/heldout.py`)."""
+
+    selfplay: str | None = Field(None, description="a self-play population of this plan: each pair's ego-seat player")
+    trained: str | None = Field(None, description="a method label of this plan: its single-network egos (agg, maml)")
+    population: str | None = Field(None, description="with `trained`: the population those egos trained on")
+    members: str | None = Field(None, description="a population whose members themselves take the ego seat")
+
+    @model_validator(mode="after")
+    def _one_source(self) -> "HeldoutAgentSpec":
+        given = [k for k in ("selfplay", "trained", "members") if getattr(self, k) is not None]
+        if len(given) != 1:
+            raise ValueError(f"give exactly one of selfplay, trained, members; got {given or 'none'}")
+        if (self.trained is None) != (self.population is None):
+            raise ValueError("`trained` and `population` go together: the method label and the population it trained on")
+        return self
+
+
+class HeldoutSpec(Strict):
+    """The held-out evaluation: named agents, each seed with every member of `partners`, and the claims to judge."""
+
+    partners: str = Field(description="the held-out population every agent plays with (all its members)")
+    episodes: PositiveInt = Field(20, description="scored episodes per (agent seed, partner)")
+    agents: dict[str, HeldoutAgentSpec]
+    claims: list[tuple[str, str]] = Field(default_factory=list, description='pairs [A, B], each the claim "A beats B"')
+
+    @model_validator(mode="after")
+    def _claims_name_agents(self) -> "HeldoutSpec":
+        unknown = sorted({x for pair in self.claims for x in pair} - set(self.agents))
+        if unknown:
+            raise ValueError(f"claims: {unknown} are not agents; agents: {sorted(self.agents)}")
+        return self
 
 
 class ScaleSpec(Strict):
@@ -96,6 +133,8 @@ class ScaleSpec(Strict):
     train_overrides: dict[str, Any] = Field(default_factory=dict)
     adapt_overrides: dict[str, Any] = Field(default_factory=dict)
     zeroshot_overrides: dict[str, Any] = Field(default_factory=dict)
+    adapt_to: dict[str, list[str]] = Field(default_factory=dict)
+    heldout: HeldoutSpec | None = None
 
 
 class PlanFile(Strict):
@@ -125,6 +164,28 @@ class PlanFile(Strict):
             check(spec.selfplay_methods, self.methods, f"{scale}.selfplay_methods")
             check(spec.zeroshot_methods, self.methods, f"{scale}.zeroshot_methods")
             check(spec.adapt_variants, self.adapt_variants, f"{scale}.adapt_variants")
+            trained = {**spec.populations, **{sp.get("name"): spec.selfplay_methods for sp in spec.selfplay}}
+            check(list(spec.adapt_to), trained, f"{scale}.adapt_to")
+            targets: dict[tuple[str, str], str] = {}
+            for source, others in spec.adapt_to.items():
+                for other in others:
+                    for label in trained[source]:
+                        if targets.setdefault((other, label), source) != source:  # both would write `<other>__<label>`
+                            raise ValueError(
+                                f"{scale}.adapt_to: {label!r} egos of {targets[other, label]!r} and {source!r} "
+                                f"would both adapt to {other!r}; give one of them another label"
+                            )
+            if spec.heldout is not None:
+                selfplay = {sp.get("name") for sp in spec.selfplay}
+                for name, agent in spec.heldout.agents.items():
+                    if agent.selfplay is not None and agent.selfplay not in selfplay:
+                        raise ValueError(
+                            f"{scale}.heldout.agents.{name}: {agent.selfplay!r} is not a self-play population of the plan"
+                        )
+                    if agent.trained is not None and agent.trained not in trained.get(agent.population, []):
+                        raise ValueError(
+                            f"{scale}.heldout.agents.{name}: the plan trains no {agent.trained!r} on {agent.population!r}"
+                        )
         return self
 
 
@@ -189,6 +250,8 @@ def plan_for(
         zeroshot_overrides=scale.zeroshot_overrides,
         quick=quick,
         no_worse_margin=spec.no_worse_margin,
+        adapt_to=scale.adapt_to,
+        heldout=scale.heldout,
     )
 
 
@@ -206,6 +269,7 @@ def narrow(plan: Plan, populations: list[str] | None = None, methods: list[str] 
         plan.populations = {k: v for k, v in plan.populations.items() if k in populations}
         plan.selfplay = [sp for sp in plan.selfplay if sp["name"] in populations]
         plan.zeroshot_populations = [p for p in plan.zeroshot_populations if p in populations]
+        plan.adapt_to = {k: v for k, v in plan.adapt_to.items() if k in populations}
     if methods:
         known = {m.label for ms in [*plan.populations.values(), plan.selfplay_methods] for m in ms}
         unknown = sorted(set(methods) - known)
@@ -214,4 +278,15 @@ def narrow(plan: Plan, populations: list[str] | None = None, methods: list[str] 
         keep = set(methods) | {plan.paper_method.label}
         plan.populations = {k: [m for m in v if m.label in keep] for k, v in plan.populations.items()}
         plan.selfplay_methods = [m for m in plan.selfplay_methods if m.label in keep]
+    if plan.heldout is not None and not all(_kept(plan, a) for a in plan.heldout.agents.values()):
+        plan.heldout = None  # its agents would be compared with some of them missing
     return plan
+
+
+def _kept(plan: Plan, agent: HeldoutAgentSpec) -> bool:
+    """Whether a narrowed `plan` still produces held-out agent `agent`."""
+    if agent.selfplay is not None:
+        return any(sp["name"] == agent.selfplay for sp in plan.selfplay)
+    if agent.trained is not None:
+        return agent.trained in [m.label for m in plan.populations.get(agent.population, [])]
+    return True

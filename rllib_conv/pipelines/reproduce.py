@@ -8,9 +8,10 @@ lands under `<out>/<game>/`:
 |---|---|---|
 | `selfplay` | self-play partner populations | `populations/<name>/` |
 | `train` | egos: every method x lam x population x seed | `runs/<experiment>/` |
-| `adapt` | adaptation curves to test partners, the adapt-only variants (`scratch`, ...) included | `adaptation/<experiment>.csv` |
+| `adapt` | adaptation curves to test partners (also another population's: `adapt_to`), the adapt-only variants (`scratch`, ...) included | `adaptation/<experiment>.csv` |
 | `zeroshot` | the three zero-shot steps (bandit, blocks) | `zeroshot/<experiment>.csv` |
 | `marginals` | task-module distance to the true marginals, every finished ego in `runs/` | `marginals.csv` |
+| `heldout` | named agents with every member of a held-out population (Carroll et al.'s PPO_SP and PPO_BC with H_proxy) | `heldout.csv` |
 
 A finished stage leaves `<stage>.done`: its wall time, then the experiments it covered.
 Running the command again skips a stage whose marker covers everything the plan asks of it;
@@ -23,7 +24,7 @@ Egos train for the paper's budget (blocks: 1M env steps). `train_steps` (`--trai
 sets another; the train marker names each experiment's budget, so a folder trained with a
 different one is not taken as done, and `fit` then refuses to mix the two.
 
-`redo` (`--redo adapt|zeroshot|marginals`) runs a finished stage again for the plan's
+`redo` (`--redo adapt|zeroshot|marginals|heldout`) runs a finished stage again for the plan's
 experiments, after a default or the code changed: their outputs (CSV and Tune folder) move
 to `superseded/<time>/` under the game folder, never deleted, and the marker stops
 covering them. Without it an unchanged config would find its finished Tune experiment and
@@ -43,11 +44,14 @@ import pandas as pd
 
 from rllib_conv import envs, partners
 from rllib_conv.common import config_files
+from rllib_conv.common.atomic_files import replaced_atomically
 from rllib_conv.common.resources import config_file
 from rllib_conv.common.run_folders import (
     ADAPT,
     ADAPTATION_DIR,
     EVAL_FILE,
+    HELDOUT,
+    HELDOUT_FILE,
     MARGINALS,
     MARGINALS_FILE,
     MARKER_SUFFIX,
@@ -75,8 +79,9 @@ from rllib_conv.common.run_folders import (
 from rllib_conv.envs.oracles import has_oracle
 from rllib_conv.pipelines.adapt import run_adaptations
 from rllib_conv.pipelines.adapt_config import AdaptConfig
+from rllib_conv.pipelines.heldout import HeldoutAgent, members_agent, play_heldout, selfplay_agent, trained_agent
 from rllib_conv.pipelines.marginal_report import marginal_report
-from rllib_conv.pipelines.plans import GAMES, AdaptVariant, Plan, TrainedVariant, narrow, plan_for
+from rllib_conv.pipelines.plans import GAMES, AdaptVariant, HeldoutAgentSpec, Plan, TrainedVariant, narrow, plan_for
 from rllib_conv.pipelines.selfplay import train_population
 from rllib_conv.pipelines.selfplay_config import SelfPlayConfig
 from rllib_conv.pipelines.train import train_stage
@@ -84,9 +89,9 @@ from rllib_conv.pipelines.zeroshot import run_zeroshots
 from rllib_conv.pipelines.zeroshot_config import ZeroShotConfig
 from rllib_conv.training.experiment import ExperimentConfig
 
-# Stages `redo` can run again: where each experiment's CSV and Tune folder live. Training and
+# Stages `redo` can run again: the folder of each experiment's CSV (its Tune folder beside it), or the stage's one file. Training and
 # self-play feed every later stage, so redoing those means a fresh output folder.
-REDO_OUTPUTS = {ADAPT: ADAPTATION_DIR, ZEROSHOT: ZEROSHOT_DIR, MARGINALS: None}
+REDO_OUTPUTS = {ADAPT: ADAPTATION_DIR, ZEROSHOT: ZEROSHOT_DIR, MARGINALS: MARGINALS_FILE, HELDOUT: HELDOUT_FILE}
 # What a problem in a stage's config is blamed on: the plan builds them, no file or `--set` holds them.
 ARGUMENTS = "arguments"
 
@@ -168,27 +173,43 @@ class Reproduction:
         configs = [config_files.checked(e, ExperimentConfig, ARGUMENTS) for e in self.training()]
         train_stage(configs, storage=self.runs, address=self.address, label=f"[{self.plan.game}] train", loggers=self.loggers)
 
+    def adapt_jobs(self) -> list[tuple[str, str, dict[str, Any], str]]:
+        """Every adaptation of this plan: (partners' population, experiment name, settings, experiment of the egos).
+
+        The egos trained on a population adapt to its test partners (none: nothing) and to
+        those of each population `adapt_to` names for it, with the adapt-only variants too.
+        """
+        jobs = []
+        for population, methods in self.populations().items():
+            targets = [population, *self.plan.adapt_to.get(Path(population).name, [])]
+            for target in targets:
+                if not self.has_test_partners(target):
+                    continue
+                for m in methods:
+                    jobs.append((target, experiment_name(target, m.label), {}, self.experiment(population, m)["name"]))
+                for v in self.variants(methods):
+                    jobs.append(
+                        (target, experiment_name(target, v.label), v.settings, self.experiment(population, v.base)["name"])
+                    )
+        return jobs
+
+    def has_test_partners(self, population: str) -> bool:
+        """Whether `population` has test members (a self-play one of this plan not trained yet is taken to)."""
+        if population.startswith(str(self.root / POPULATIONS_DIR)) and not (Path(population) / POPULATION_FILE).is_file():
+            return True
+        return bool(partners.get(population).entries("test"))
+
     def stage_adapt(self) -> None:
         configs = []
-        for population, methods in self.populations().items():
-            pop = partners.get(population)
-            names = [e.name for e in pop.entries("test")][: self.plan.adapt_partners]
-            jobs = [
-                (self.experiment(population, m)["name"], {"runs": self.egos(self.experiment(population, m)["name"])})
-                for m in methods
-            ]
-            for v in self.variants(methods):
-                jobs.append(
-                    (
-                        experiment_name(population, v.label),
-                        {**v.settings, "runs": self.egos(self.experiment(population, v.base)["name"])},
-                    )
-                )
-            for name, extra in jobs:
-                if covers(self.root / ADAPTATION_DIR / f"{name}.csv", extra["runs"]):
-                    continue
-                raw = _merge({"name": name, "population": population, "partners": names}, {**self.plan.adapt_overrides, **extra})
-                configs.append(config_files.checked(raw, AdaptConfig, ARGUMENTS))
+        for target, name, settings, egos_of in self.adapt_jobs():
+            runs = self.egos(egos_of)
+            if covers(self.root / ADAPTATION_DIR / f"{name}.csv", runs):
+                continue
+            names = [e.name for e in partners.get(target).entries("test")][: self.plan.adapt_partners]
+            if not names:  # a self-play population whose test pairs all failed their gate
+                continue
+            raw = _merge({"name": name, "population": target, "partners": names}, {**self.plan.adapt_overrides, **settings})
+            configs.append(config_files.checked({**raw, "runs": runs}, AdaptConfig, ARGUMENTS))
         if configs:
             label = f"[{self.plan.game}] adapt"
             run_adaptations(
@@ -234,6 +255,23 @@ class Reproduction:
         table["experiment"] = [experiment_of(r).name for r in table["run"]]
         table.to_csv(self.root / MARGINALS_FILE, index=False)
 
+    def heldout_agent(self, label: str, spec: HeldoutAgentSpec) -> HeldoutAgent:
+        """The held-out evaluation's agent `label` from what this plan trained (`pipelines/heldout.py`)."""
+        if spec.selfplay is not None:
+            return selfplay_agent(label, partners.get(str(self.root / POPULATIONS_DIR / spec.selfplay)))
+        if spec.members is not None:
+            return members_agent(label, partners.get(spec.members))
+        method = next(m for m in self.populations()[spec.population] if m.label == spec.trained)
+        return trained_agent(label, self.runs / self.experiment(spec.population, method)["name"], self.plan.seeds)
+
+    def stage_heldout(self) -> None:
+        spec = self.plan.heldout
+        agents = [self.heldout_agent(label, a) for label, a in spec.agents.items()]
+        self.log(f"[{self.plan.game}] heldout: {len(agents)} agents with every member of {spec.partners}")
+        table = play_heldout(agents, partners.get(spec.partners), spec.episodes)
+        with replaced_atomically(self.root / HELDOUT_FILE) as tmp:
+            table.to_csv(tmp, index=False)
+
     def stages(self) -> list[tuple[str, Callable[[], None]]]:
         """The plan's stages, in order."""
         stages = [(SELFPLAY, self.stage_selfplay), (TRAIN, self.stage_train), (ADAPT, self.stage_adapt)]
@@ -241,6 +279,8 @@ class Reproduction:
             stages.append((ZEROSHOT, self.stage_zeroshot))
         if has_oracle(self.plan.game):
             stages.append((MARGINALS, self.stage_marginals))
+        if self.plan.heldout is not None:
+            stages.append((HELDOUT, self.stage_heldout))
         return stages
 
     def run(self) -> dict[str, float]:
@@ -258,6 +298,8 @@ class Reproduction:
             "items": items,
         }
         plan["report"] = envs.game(self.plan.game).report_facts()  # what the report needs of the game (analysis reads files only)
+        if self.plan.heldout is not None:  # what the report judges, declared before the run
+            plan["heldout"] = {"partners": self.plan.heldout.partners, "claims": self.plan.heldout.claims}
         if self.plan.no_worse_margin is not None:
             plan["no_worse_margin"] = self.plan.no_worse_margin  # the "no worse" claims' margin, declared in the plan
         (self.root / PLAN_FILE).write_text(json.dumps(plan, indent=2))
@@ -283,8 +325,8 @@ class Reproduction:
         if stage not in REDO_OUTPUTS:
             raise ValueError(f"--redo: expected one of {sorted(REDO_OUTPUTS)}, got {stage!r}")
         items = self.stage_items(stage)
-        if stage == MARGINALS:
-            outputs = [self.root / MARGINALS_FILE]
+        if stage in (MARGINALS, HELDOUT):  # one file, no Tune run
+            outputs = [self.root / REDO_OUTPUTS[stage]]
         else:
             folder = REDO_OUTPUTS[stage]
             names = self.stage_experiments(stage)
@@ -311,9 +353,10 @@ class Reproduction:
         return {
             SELFPLAY: [sp["name"] for sp in self.plan.selfplay],
             TRAIN: [e["name"] for e in self.training()],
-            ADAPT: [*trained, *(experiment_name(p, v.label) for p, ms in self.populations().items() for v in self.variants(ms))],
+            ADAPT: [name for _, name, _, _ in self.adapt_jobs()],
             ZEROSHOT: zeroshot,
             MARGINALS: sorted(n for n in {*trained, *zeroshot} if self.has_marginals(n)),
+            HELDOUT: sorted(self.plan.heldout.agents) if self.plan.heldout else [],
         }[stage]
 
     def stage_items(self, stage: str) -> list[str]:

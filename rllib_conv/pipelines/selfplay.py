@@ -123,8 +123,8 @@ def seat_partner(module: Any, module_id: str, greedy: bool, seed: int = 0) -> Po
 
 
 def selfplay_score(module: Any, cfg: SelfPlayConfig, episodes: int, seed: int) -> float:
-    """Mean self-play return of the pair's seat policies, acting as fixed partners would."""
-    env = envs.make(cfg.env, **cfg.env_config)
+    """Mean self-play score of the pair's seat policies, acting as fixed partners would (`envs.make_scored`)."""
+    env = envs.make_scored(cfg.env, **cfg.env_config)
     seats = {
         a: seat_partner(module, seat_module_id(cfg, a), cfg.greedy_partners, seed + i) for i, a in enumerate(env.possible_agents)
     }

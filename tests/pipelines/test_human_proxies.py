@@ -1,9 +1,8 @@
 """Human proxies (`pipelines.human_proxies`, `partners.overcooked`): trained into a cache, named as built-in populations.
 
-The slow test fetches the 2019 human data through pip into a temporary cache (as the human
-data tests do: without the registry it fails, it does not skip), keeps the first 150 logged
-steps of each cramped_room trial there, and trains on those; nothing derived from the data
-is written outside `tmp_path`.
+The slow test trains on the 2019 human data cut short in a temporary cache (the
+`short_human_cache` fixture, fetched through pip: without the registry it fails, it does not
+skip); nothing derived from the data is written outside the test's temporary folders.
 """
 
 from __future__ import annotations
@@ -60,19 +59,9 @@ def test_the_human_return_is_the_logged_reward_per_horizon_steps_counted_once_pe
     assert human_proxies.human_return(frame, horizon=400) == 2000.0
 
 
-@pytest.fixture(scope="module")
-def short_cache(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """A cache holding cramped_room's trajectories cut to the first 150 logged steps of each trial (both splits)."""
-    folder = tmp_path_factory.mktemp("proxies-cache")
-    hd.fetch(folder)  # needs the registry, as tests/envs/test_overcooked_human_data.py
-    for path in hd.convert(folder, ["cramped_room"]).values():
-        frame = pd.read_parquet(path)
-        frame[frame["t"] < 150].to_parquet(path, index=False)
-    return folder
-
-
 @pytest.mark.slow  # fetches the data (pip), converts it, trains 4 short proxies: 5-30 s on 2 cores
-def test_trained_proxies_resolve_by_name_and_play_either_seat(short_cache: Path, monkeypatch) -> None:
+def test_trained_proxies_resolve_by_name_and_play_either_seat(short_human_cache: Path, monkeypatch) -> None:
+    short_cache = short_human_cache
     table = human_proxies.run(["cramped_room"], [0], short_cache, BCSettings(epochs=3), episodes=2)
     assert len(table) == 1
     row = table.iloc[0]

@@ -9,9 +9,13 @@ import pandas as pd
 import pytest
 
 from rllib_conv.cli import main
+from rllib_conv.common.resources import config_file
 from rllib_conv.common.run_folders import CONFIG_FILE, EVAL_FILE, read_marker
+from rllib_conv.partners.overcooked import proxies_folder
+from rllib_conv.pipelines import human_proxies
 from rllib_conv.pipelines.plans import narrow, plan_for
 from rllib_conv.pipelines.reproduce import Reproduction
+from rllib_conv.training.behaviour_cloning import BCSettings
 
 
 def test_narrow_keeps_the_named_populations_and_methods() -> None:
@@ -221,14 +225,31 @@ def test_quick_reproduction_runs_every_stage_and_builds_the_report(ray_session, 
 
 
 @pytest.mark.slow
-def test_quick_overcooked_reproduction_trains_adapts_to_held_out_cooks_and_reports(ray_session, tmp_path) -> None:
+def test_quick_overcooked_reproduction_trains_adapts_to_cooks_and_human_proxies_and_plays_the_anchor(
+    ray_session, tmp_path, short_human_cache
+) -> None:
+    # The shipped quick plan, with the built-in proxy names replaced by the folders of proxies trained here on the
+    # short human data (the built-in names would read the user's cache).
+    human_proxies.run(["cramped_room"], [0], short_human_cache, BCSettings(epochs=3), episodes=2)
+    text = config_file("plan_overcooked.yaml").read_text()
+    for kind in ("bc", "hproxy"):
+        text = text.replace(f"overcooked-cramped_room-{kind}", str(proxies_folder("cramped_room", kind, short_human_cache)))
+    plan = tmp_path / "plan.yaml"
+    plan.write_text(text)
     out = tmp_path / "repro"
-    assert main(["reproduce", "overcooked", "--quick", "--seeds", "1", "--out", str(out)]) == 0
+    assert main(["reproduce", "overcooked", "--quick", "--seeds", "1", "--plan", str(plan), "--out", str(out)]) == 0
     game = out / "overcooked"
-    assert sorted(p.stem for p in game.glob("*.done")) == ["adapt", "selfplay", "train"]  # no oracle: no marginals
+    assert sorted(p.stem for p in game.glob("*.done")) == ["adapt", "heldout", "selfplay", "train"]  # no oracle: no marginals
     curves = pd.read_csv(game / "adaptation" / "overcooked-cramped_room-cooks__modular-lam0.5.csv")
     assert curves["steps"].min() == 0 and curves["steps"].max() == 1600
-    assert "overcooked-cramped_room-cooks" in (out / "report" / "report.md").read_text()
+    # The egos trained with the cooks also adapt to the human proxies none of them trained with.
+    to_people = pd.read_csv(game / "adaptation" / "hproxy__modular-lam0.5.csv")
+    assert set(to_people["partner"]) == {"seed0"} and to_people["steps"].max() == 1600
+    assert (game / "adaptation" / "hproxy__scratch.csv").is_file()
+    heldout = pd.read_csv(game / "heldout.csv")
+    assert sorted(heldout["agent"].unique()) == ["BC", "PPO_BC", "PPO_SP"] and (heldout["episodes"] == 2).all()
+    report = (out / "report" / "report.md").read_text()
+    assert "overcooked-cramped_room-cooks" in report and "| PPO_BC beats PPO_SP |" in report
 
 
 def test_redo_moves_a_stages_outputs_aside_and_runs_it_again(tmp_path, monkeypatch) -> None:
