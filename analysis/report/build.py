@@ -6,6 +6,7 @@ import datetime as _dt
 from pathlib import Path
 from typing import Iterable
 
+from analysis.archive import DATA_DIR, archive
 from analysis.report.context import Context
 from analysis.report.sections.adaptation import adaptation_section
 from analysis.report.sections.beyond import beyond_section
@@ -25,7 +26,8 @@ def build_report(root: str | Path, out: str | Path | None = None, user_study: It
     `root` is a `reproduce --out` folder (one sub-folder per game) or one game folder;
     `out` defaults to `<root>/report`. `user_study` names recorded session CSVs (files
     or folders) to analyse beside the paper's table; by default `<root>/user_study/` if
-    it exists. Only files are read; nothing is trained or evaluated.
+    it exists. Only files are read; nothing is trained or evaluated. Every file read from
+    `root` is copied into `<out>/data/` (`analysis.archive`): the report builds again from it.
     """
     root, out = Path(root), Path(out) if out is not None else Path(root) / "report"
     if not root.is_dir():
@@ -67,4 +69,6 @@ def build_report(root: str | Path, out: str | Path | None = None, user_study: It
     text = "\n".join(head + [body[0], "", differences_section(ctx), ""] + [b + "\n" for b in body[1:]])
     path = out / "report.md"
     path.write_text(text)
+    if (out / DATA_DIR).resolve() != root.resolve():  # not a rebuild from the report's own data
+        archive(root, out / DATA_DIR)
     return path

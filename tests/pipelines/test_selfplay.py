@@ -23,6 +23,7 @@ from rllib_conv.modules import partner_id
 from rllib_conv.modules.multi import replica_id
 from rllib_conv.partners.trained import TrainedPolicyPartner
 from rllib_conv.pipelines.crossplay import crossplay, write_crossplay
+from rllib_conv.pipelines import selfplay
 from rllib_conv.pipelines.selfplay import train_population
 from rllib_conv.pipelines.selfplay_config import SelfPlayConfig
 from rllib_conv.training.algorithm import build_ppo_config
@@ -225,3 +226,18 @@ def test_selfplay_configs_are_valid() -> None:
         cfg = config_files.load_checked(path, schema=SelfPlayConfig).first
         assert cfg.gate.episodes == 1000
     assert yaml.safe_load(open("tune_configs/selfplay_blocks.yaml"))["gate"]["score"] == 19.0
+
+
+def test_the_gate_scores_pairs_as_every_score_is_measured(monkeypatch) -> None:
+    # On Overcooked the training reward includes the shaped reward; the gate must see soups alone (envs.make_scored).
+    class Scored(Exception):
+        pass
+
+    def make_scored(name, **config):
+        raise Scored(name, config)
+
+    monkeypatch.setattr(selfplay.envs, "make_scored", make_scored)
+    cfg = SelfPlayConfig.model_validate(selfplay_raw())
+    with pytest.raises(Scored) as found:
+        selfplay.selfplay_score(None, cfg, episodes=1, seed=0)
+    assert found.value.args == ("bandit", cfg.env_config)

@@ -41,7 +41,7 @@ def status_section(ctx: Context) -> str:
         rows.append(
             [
                 game,
-                f"`{game_dir}`",
+                f"`{game_dir.name}`",  # under the root the report names above: the report reads the same rebuilt elsewhere
                 plan.get("seeds", "?"),
                 "yes" if plan.get("quick") else "no",
                 ", ".join(done) or "none",
