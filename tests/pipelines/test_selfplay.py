@@ -22,8 +22,8 @@ from rllib_conv.envs.bandit.oracle import bandit_states
 from rllib_conv.modules import partner_id
 from rllib_conv.modules.multi import replica_id
 from rllib_conv.partners.trained import TrainedPolicyPartner
-from rllib_conv.pipelines.crossplay import crossplay, write_crossplay
 from rllib_conv.pipelines import selfplay
+from rllib_conv.pipelines.crossplay import crossplay, write_crossplay
 from rllib_conv.pipelines.selfplay import train_population
 from rllib_conv.pipelines.selfplay_config import SelfPlayConfig
 from rllib_conv.training.algorithm import build_ppo_config
