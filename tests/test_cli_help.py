@@ -51,6 +51,7 @@ def test_help_lists_a_help_text_for_every_option(words, parser, capsys) -> None:
         assert " ".join(action.help.split()[:4]) in shown
         for option in action.option_strings:
             assert option in shown
+    assert "Undefined" not in shown  # a required field's missing default is not a default to show
 
 
 def test_version(capsys) -> None:

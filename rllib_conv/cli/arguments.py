@@ -28,7 +28,8 @@ PER_TRIAL = {"run", "partner"}  # schema keys filled in for each Tune trial, not
 def described(schema: type[BaseModel], key: str) -> str:
     """The help text of the option that sets `key`: the schema's description, then its default when it has a plain one."""
     field = schema.model_fields[key]
-    if field.default_factory is not None or field.default is None:  # a factory's or None's meaning is in the description
+    # A factory's or None's meaning is in the description; a required field has no default to show.
+    if field.default_factory is not None or field.default is None or field.is_required():
         return str(field.description)
     default = str(field.default).lower() if isinstance(field.default, bool) else field.default
     return f"{field.description} (default: {default})"
