@@ -71,13 +71,18 @@ def adaptation_claims(ctx: Context, auc: pd.DataFrame) -> list[ClaimCheck]:
 
 
 def summary_table(auc: pd.DataFrame) -> str:
-    """Per population and method: the return at the first and last evaluation and the AUC, each with its seed-level interval."""
+    """Per population and method: the return at the first and last evaluation, the AUC and the gain over not adapting, each with its seed-level interval.
+
+    The gain is AUC − return at step 0, per curve: what adapting earned over holding the ego as it was (a frozen
+    ego scores its step-0 return at every point, in expectation), so a negative gain means adapting cost return.
+    """
     keys = ["game", "population", "label"]
-    start, end, area = (seed_summary(auc, keys, column).set_index(keys) for column in ("start", "end", "auc"))
+    auc = auc.assign(gain=auc["auc"] - auc["start"])
+    start, end, area, gain = (seed_summary(auc, keys, column).set_index(keys) for column in ("start", "end", "auc", "gain"))
     rows = []
     for (game, population, label), g in auc.groupby(keys):
         d, key = digits(game), (game, population, label)
-        cells = [fmt_summary(s.loc[key], d) for s in (start, end, area)]
+        cells = [fmt_summary(s.loc[key], d) for s in (start, end, area, gain)]
         source = "exact" if g["value_source"].iloc[0] == "exact_return" else "episodes"
         rows.append(
             [
@@ -100,6 +105,7 @@ def summary_table(auc: pd.DataFrame) -> str:
             "return at step 0",
             "return at last step",
             "AUC",
+            "gain over not adapting (AUC − step 0)",
             "return",
         ],
         rows,
