@@ -179,19 +179,17 @@ class Reproduction:
         The egos trained on a population adapt to its test partners (none: nothing) and to
         those of each population `adapt_to` names for it, with the adapt-only variants too.
         """
-        jobs = []
+        trained, variants = [], []  # every trained method's adaptations first, then the adapt-only variants'
         for population, methods in self.populations().items():
-            targets = [population, *self.plan.adapt_to.get(Path(population).name, [])]
-            for target in targets:
+            for target in [population, *self.plan.adapt_to.get(Path(population).name, [])]:
                 if not self.has_test_partners(target):
                     continue
                 for m in methods:
-                    jobs.append((target, experiment_name(target, m.label), {}, self.experiment(population, m)["name"]))
+                    trained.append((target, experiment_name(target, m.label), {}, self.experiment(population, m)["name"]))
                 for v in self.variants(methods):
-                    jobs.append(
-                        (target, experiment_name(target, v.label), v.settings, self.experiment(population, v.base)["name"])
-                    )
-        return jobs
+                    base = self.experiment(population, v.base)["name"]
+                    variants.append((target, experiment_name(target, v.label), v.settings, base))
+        return trained + variants
 
     def has_test_partners(self, population: str) -> bool:
         """Whether `population` has test members (a self-play one of this plan not trained yet is taken to)."""

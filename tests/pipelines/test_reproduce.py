@@ -276,5 +276,5 @@ def test_redo_moves_a_stages_outputs_aside_and_runs_it_again(tmp_path, monkeypat
     monkeypatch.setattr(Reproduction, "stages", lambda self: [("zeroshot", lambda: calls.append("zeroshot"))])
     repro.run()
     assert calls == ["zeroshot"] and set(read_marker(tmp_path / "zeroshot.done")[1]) == {other, *items}
-    with pytest.raises(ValueError, match=r"--redo: expected one of \['adapt', 'marginals', 'zeroshot'\], got 'train'"):
+    with pytest.raises(ValueError, match=r"--redo: expected one of \['adapt', 'heldout', 'marginals', 'zeroshot'\], got 'train'"):
         repro.redo("train")
