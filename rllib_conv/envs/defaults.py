@@ -29,13 +29,15 @@ class TrainingDefaults:
 
 @dataclass(frozen=True)
 class AdaptDefaults:
-    """The adaptation protocol: evaluate every `every` env steps up to `steps`; one PPO update
-    of `minibatch_size` x `num_epochs` per `every` steps (None: the trained ego's)."""
+    """The adaptation protocol: evaluate every `every` env steps up to `steps`, `episodes`
+    episodes each; one PPO update of `minibatch_size` x `num_epochs` per `every` steps (None:
+    the trained ego's)."""
 
     every: int
     steps: int
     minibatch_size: int | None = None
     num_epochs: int | None = None
+    episodes: int = 200
 
 
 @dataclass(frozen=True)

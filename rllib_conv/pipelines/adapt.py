@@ -102,8 +102,8 @@ def adapt_curve(cfg: AdaptConfig, run: str, partner: str) -> Curve:
     check_trained_ego(cfg.head_init, method(trained.method), repr(str(trial)))
     if adapter(cfg.head_init).uses["adapt"].training_policies:
         require_action_probs(partners.get(trained.population), "head_init 'posterior'")
-    check_episodes(cfg.episodes, game, trained.env_config)
-    every, _ = protocol(cfg, trained)
+    every, _, episodes = protocol(cfg, trained)
+    check_episodes(episodes, game, trained.env_config)
     defaults = envs.game(game).adapt_defaults(trained.ppo.rollout_per_partner)
     batches = {k: getattr(defaults, k) for k in ("minibatch_size", "num_epochs") if getattr(defaults, k) is not None}
     ppo = trained.ppo.model_dump()
@@ -135,10 +135,12 @@ def adapt_curve(cfg: AdaptConfig, run: str, partner: str) -> Curve:
     return Curve(run, partner, setup_for(exp, pop, [entry]), load, trained, label)
 
 
-def protocol(cfg: AdaptConfig, trained: ExperimentConfig) -> tuple[int, int]:
-    """(every, steps): env steps between evaluations (one update each) and the curve's length, defaults per game."""
+def protocol(cfg: AdaptConfig, trained: ExperimentConfig) -> tuple[int, int, int]:
+    """(every, steps, episodes): env steps between evaluations (one update each), the curve's length and the
+    episodes per evaluation, defaults per game."""
     defaults = envs.game(trained.env).adapt_defaults(trained.ppo.rollout_per_partner)
-    return cfg.every or defaults.every, cfg.steps or defaults.steps
+    episodes = defaults.episodes if cfg.episodes is None else cfg.episodes
+    return cfg.every or defaults.every, cfg.steps or defaults.steps, episodes
 
 
 class AdaptTrainable(AlgorithmTrainable):
@@ -157,7 +159,7 @@ class AdaptTrainable(AlgorithmTrainable):
         self.curves = [adapt_curve(self.cfg, c["run"], c["partner"]) for c in job["curves"]]
         self.replicas = [Replica(c.setup, c.load) for c in self.curves]
         self.algo = build_algorithm(self.replicas)
-        self.total = protocol(self.cfg, self.curves[0].trained)[1]
+        _, self.total, self.episodes = protocol(self.cfg, self.curves[0].trained)
         module = learner_module(self.algo)
         self.plain = [replica_module(module, r, rep) for r, rep in enumerate(self.replicas)]  # evaluation copies
         k = len(self.curves)
@@ -306,7 +308,7 @@ class AdaptTrainable(AlgorithmTrainable):
                 entry.build(),
                 curve.setup.ego_agent,
                 curve.setup.partner_agent,
-                self.cfg.episodes,
+                self.episodes,
                 seed=self.cfg.seed + self.iteration,
             )
             row = {
@@ -319,7 +321,7 @@ class AdaptTrainable(AlgorithmTrainable):
             if self.cfg.guard:
                 row["prior_kept"] = not self.guards[r].trusted
             self.rows.append({**row, **({"picked": self.picked[r]} if self.picked[r] else {})})
-            returns.append(score["mean"] if self.cfg.episodes else score["exact"])
+            returns.append(score["mean"] if self.episodes else score["exact"])
             self.finished[r] = self.steps[r] >= self.total
         return returns
 

@@ -94,8 +94,10 @@ class AdaptConfig(Strict):
         None, description="env steps between evaluations, one PPO update each (default: the game's adaptation protocol)"
     )
     steps: PositiveInt | None = Field(None, description="env steps of adaptation (default: the game's adaptation protocol)")
-    episodes: NonNegativeInt = Field(
-        200, description="episodes per evaluation (0 on the bandit: scored by the exact expectation alone)"
+    episodes: NonNegativeInt | None = Field(
+        None,
+        description="episodes per evaluation (default: the game's adaptation protocol, 200 for most; "
+        "0 on the bandit: scored by the exact expectation alone)",
     )
     ppo: dict[str, Any] = Field(
         default_factory=dict, description="PPO settings replacing the run's, e.g. --set ppo.lr=1e-4 or ppo.num_epochs=10"

@@ -73,7 +73,9 @@ def trained_agent(label: str, experiment: str | Path, seeds: list[int] | None = 
     for trial in trial_folders(experiment):
         trial_seed = int(read_trial_config(trial).get("seed", 0))
         if seeds is None or trial_seed in seeds:
-            players.append(Player(trial_seed, str(trial), seat(f"{trial}:ego", trial_seed).player))
+            # Named inside the experiment, not by absolute path: the table travels with the report's data.
+            name = f"{Path(experiment).name}/{Path(trial).relative_to(experiment)}"
+            players.append(Player(trial_seed, name, seat(f"{trial}:ego", trial_seed).player))
     if not players:
         raise ValueError(f"agent {label!r}: no trained ego of seeds {seeds} in {str(experiment)!r}")
     return HeldoutAgent(label, players, None)

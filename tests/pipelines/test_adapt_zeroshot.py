@@ -13,7 +13,7 @@ from rllib_conv import partners
 from rllib_conv.common.config_files import checked
 from rllib_conv.common.sealed import seal_file
 from rllib_conv.modules import AGG_HEAD_ID, TASK_ID, ego_id
-from rllib_conv.pipelines.adapt import CURVE_COLUMNS, adapt_curve, run_adaptation
+from rllib_conv.pipelines.adapt import CURVE_COLUMNS, adapt_curve, protocol, run_adaptation
 from rllib_conv.pipelines.adapt_config import AdaptConfig
 from rllib_conv.pipelines.zeroshot import run_zeroshot
 from rllib_conv.pipelines.zeroshot_config import ZeroShotConfig
@@ -86,6 +86,21 @@ def test_no_sampled_episodes_is_refused_where_no_exact_return_exists() -> None:
     partner = partners.get("blocks-perm").partners[0].build()
     with pytest.raises(ValueError, match="episodes=0 .* 'blocks' needs episodes >= 1"):
         player_return(partner, "blocks", {}, partner, "player_0", "player_1", episodes=0)
+
+
+@pytest.mark.parametrize(
+    ("env", "population", "set_episodes", "expected"),
+    [
+        ("overcooked", "overcooked-cramped_room-cooks", None, 50),
+        ("blocks", "blocks-perm", None, 200),
+        ("overcooked", "overcooked-cramped_room-cooks", 7, 7),
+    ],
+)
+def test_episodes_per_evaluation_default_to_the_games_protocol(env, population, set_episodes, expected) -> None:
+    trained = ExperimentConfig(env=env, population=population)
+    cfg = AdaptConfig(runs=["x"], episodes=set_episodes)
+    every, steps, episodes = protocol(cfg, trained)
+    assert episodes == expected and (every, steps) == ((1_600, 16_000) if env == "overcooked" else (640, 25_600))
 
 
 @pytest.mark.slow
