@@ -5,7 +5,8 @@ The records themselves (names, what each uses, old spellings, `choose`) are
 import only `rllib_conv.common`), the configs and the server's argument checks read them
 without loading a network. This module is the adaptation package's door to them: it binds
 each name to the code that runs it (`IMPLEMENTED_BY`) and checks a choice against a trained
-ego (`check_trained_ego`); the adapt pipeline imports both from here.
+ego (`check_trained_ego`) and against what the game lets the ego observe (`check_information`);
+the adapt pipeline imports them from here.
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from rllib_conv.common.adapters import (
     names,
 )
 from rllib_conv.common.methods import Method
+from rllib_conv.envs.registry import game
 
 __all__ = [
     "ADAPTERS",
@@ -43,6 +45,7 @@ __all__ = [
     "Uses",
     "adapter",
     "canonical",
+    "check_information",
     "check_trained_ego",
     "choose",
     "names",
@@ -54,6 +57,20 @@ IMPLEMENTED_BY = {
     POSTERIOR: convention_posterior.ConventionPosterior,
     GUARD: fine_tune_guard.FineTuneGuard,
 }
+
+
+def check_information(start: str, game_name: str, surface: Surface = "adapt") -> None:
+    """ValueError unless adapter `start` uses only what the ego observes in `game_name`.
+
+    An adapter that reads the partner's moves in the partner's own situation (`Uses.partner_situation`) would
+    see what the game hides from the ego where the partner's observation shows more (`GameRecord.partner_sees`).
+    """
+    hidden = game(game_name).partner_sees
+    if hidden is not None and adapter(start).uses[surface].partner_situation:
+        raise ValueError(
+            f"head_init {canonical(start)!r} reads the partner's moves in the situation the partner saw, which in "
+            f"{game_name!r} shows {hidden}: it would adapt on information the ego does not have; use fresh or pick"
+        )
 
 
 def check_trained_ego(start: str, trained: Method, what: str) -> None:

@@ -35,6 +35,9 @@ class Uses:
 
     # The new partner's own moves, read as evidence (not only through the returns they bring).
     partner_actions: bool = False
+    # The situation the new partner saw at each of its moves (its observation): allowed only in games where
+    # it holds nothing the ego does not observe (`GameRecord.partner_sees`), so adapters stay on equal information.
+    partner_situation: bool = False
     # The returns of episodes played with the new partner (PPO's rollouts, the candidates' scores).
     returns: bool = False
     # The training partners' policies (their action probabilities), as models of known conventions.
@@ -103,8 +106,17 @@ ADAPTERS: dict[str, Adapter] = {
             uses={
                 # The posterior reads the partner's moves against the training partners' models, per situation; where the
                 # game has a planner it plays the best response to the prediction; the fresh head beside it adapts by PPO.
-                "adapt": Uses(partner_actions=True, returns=True, training_policies=True, situation_keys=True, game_model=True),
-                "play": Uses(partner_actions=True, training_policies=True, situation_keys=True, game_model=True),
+                "adapt": Uses(
+                    partner_actions=True,
+                    partner_situation=True,
+                    returns=True,
+                    training_policies=True,
+                    situation_keys=True,
+                    game_model=True,
+                ),
+                "play": Uses(
+                    partner_actions=True, partner_situation=True, training_policies=True, situation_keys=True, game_model=True
+                ),
             },
             module="rllib_conv/adaptation/convention_posterior.py",
         ),

@@ -52,6 +52,10 @@ class GameRecord:
     states: StatesFn | None = None  # the ego's every state, where a game can list them; None: the marginals sample play
     convention_key: KeyFn | None = None  # None: each move is its own situation
     best_response: BestResponseFactory | None = None  # None: the ego cannot plan against a partner model
+    # What a partner's observation shows that the ego's seat never observes (Hanabi: the ego's own hand). None:
+    # the partner sees nothing the ego cannot know from its own observations and moves, so an adapter may read
+    # the partner's moves in the situation the partner saw (`adaptation.registry.check_information`).
+    partner_sees: str | None = None
     max_score: float | None = None  # the best score an episode can reach (report tables)
     # Env settings every measured score uses, over the training ones (`registry.make_scored`): Overcooked
     # trains on a shaped reward but is scored on soups delivered alone, as Carroll et al. report it.

@@ -48,7 +48,7 @@ from rllib_conv.adaptation.convention_posterior import (
 )
 from rllib_conv.adaptation.fine_tune_guard import FineTuneGuard
 from rllib_conv.adaptation.head_pick import HeadPick, pick_head
-from rllib_conv.adaptation.registry import FRESH, PICK, POSTERIOR, adapter, check_trained_ego
+from rllib_conv.adaptation.registry import FRESH, PICK, POSTERIOR, adapter, check_information, check_trained_ego
 from rllib_conv.common.atomic_files import replaced_atomically
 from rllib_conv.common.config_files import Checked
 from rllib_conv.common.methods import method
@@ -100,6 +100,7 @@ def adapt_curve(cfg: AdaptConfig, run: str, partner: str) -> Curve:
     if pop.env != game:
         raise ValueError(f"population {pop.name!r} is for {pop.env!r}, but the ego in {str(trial)!r} was trained on {game!r}")
     check_trained_ego(cfg.head_init, method(trained.method), repr(str(trial)))
+    check_information(cfg.head_init, game)
     if adapter(cfg.head_init).uses["adapt"].training_policies:
         require_action_probs(partners.get(trained.population), "head_init 'posterior'")
     every, _, episodes = protocol(cfg, trained)

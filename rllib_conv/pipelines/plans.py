@@ -18,6 +18,7 @@ from typing import Any
 from pydantic import Field, NonNegativeFloat, PositiveInt, ValidationError, model_validator
 
 from rllib_conv import envs
+from rllib_conv.adaptation.registry import FRESH, check_information
 from rllib_conv.common import config_files
 from rllib_conv.common.config_files import Strict
 from rllib_conv.common.resources import available, config_file
@@ -231,6 +232,11 @@ def plan_for(
         raise ValueError(
             f"plan file {str(source)!r}: zero-shot populations for {game!r}, a game without a new task (its record's new_task)"
         )
+    for label in scale.adapt_variants:
+        try:
+            check_information(adapt_variants[label].settings.get("head_init", FRESH), game)
+        except ValueError as exc:
+            raise ValueError(f"plan file {str(source)!r}: adapt_variants.{label}: {exc}") from None
     return Plan(
         game=game,
         seeds=[0] if quick else list(range(seeds)),

@@ -65,7 +65,14 @@ def test_what_each_adapter_uses_is_stated_per_surface() -> None:
     uses = {name: {surface: u.names() for surface, u in record.uses.items()} for name, record in adapters.ADAPTERS.items()}
     assert uses["fresh"] == {"adapt": ["returns"], "play": ["partner_actions", "game_model"]}
     assert uses["pick"] == {"adapt": ["returns"]}
-    assert uses["posterior"]["adapt"] == ["partner_actions", "returns", "training_policies", "situation_keys", "game_model"]
+    assert uses["posterior"]["adapt"] == [
+        "partner_actions",
+        "partner_situation",
+        "returns",
+        "training_policies",
+        "situation_keys",
+        "game_model",
+    ]
     assert "returns" not in uses["posterior"]["play"]
     assert uses["guard"] == {"adapt": ["returns"]}
     assert [a.name for a in adapters.ADAPTERS.values() if a.in_paper] == ["fresh"]

@@ -421,6 +421,13 @@ def test_the_convention_posterior_is_judged_against_its_own_targets(tmp_path: Pa
     )
     assert f"| Arms 3 | {name} | AUC within 0.01 of the Bayes-optimal adapter | contradicted | {name} − Bayes-optimal" in beyond
     assert "![beyond_posterior](figures/beyond_posterior.png)" in beyond
+    # Each row says what its adapter read besides the trained ego: the posterior far more than the paper's PPO.
+    assert re.search(
+        rf"\| Arms 2 \| {re.escape(name)} \| [^|]+ \| [^|]+ \| partner actions, partner situation, returns, training policies, "
+        r"situation keys, game model \|",
+        beyond,
+    )
+    assert re.search(r"\| Arms 2 \| ours λ=0\.5 \| [^|]+ \| [^|]+ \| returns \|", beyond)
     assert "beyond-guarded" not in beyond  # not run here
     # Not a claim of the paper: the tallies are those without it.
     assert "Claims checked: 5 (2 supported, 3 not shown, 0 contradicted)" in text

@@ -79,6 +79,13 @@ def _target(ctx: Context, population: str, auc: pd.DataFrame, label: str) -> tup
     return None
 
 
+def information_used(label: str) -> str:
+    """What the adapter behind a row reads besides the trained ego (`rllib_conv.common.adapters`), for the table."""
+    names = {POSTERIOR: [adapters.POSTERIOR], GUARDED: [adapters.POSTERIOR, adapters.GUARD]}.get(label, [adapters.FRESH])
+    used = dict.fromkeys(name for a in names for name in adapters.adapter(a).uses["adapt"].names())
+    return ", ".join(used).replace("_", " ")
+
+
 def beyond_section(ctx: Context) -> str:
     """The adapters beyond the paper beside the paper's method: curves, start/AUC table, and their targets (empty if none was run)."""
     present = [] if ctx.adaptation.empty else [x for x in BEYOND if x in set(ctx.adaptation["label"])]
@@ -121,9 +128,16 @@ def beyond_section(ctx: Context) -> str:
                         label_name(label),
                         fmt_summary(start.loc[(population, label)], d),
                         fmt_summary(area.loc[(population, label)], d),
+                        information_used(label),
                     ]
                 )
-    lines += ["", md_table(["population", "method", "return at step 0", "AUC"], rows)]
+    lines += [
+        "",
+        "Information used: what each adapter reads besides the trained ego (`rllib_conv/common/adapters.py`); the paper's "
+        "methods adapt by PPO on the returns of their rollouts alone; the oracle's task logits are the true marginals.",
+        "",
+        md_table(["population", "method", "return at step 0", "AUC", "information used"], rows),
+    ]
 
     targets = []
     for population in populations:
