@@ -20,8 +20,9 @@ it, smoothed with `epsilon` of the uniform distribution over legal moves (a mode
 certain); a novel convention is uniform. Priors: `recombined` on recombination, the rest
 split evenly over the whole conventions; within a situation `novel` on a novel convention.
 
-On the bandit a recombination-posterior of known conventions is what the Bayes-optimal
-adapter does (a seen context's arm is known, an unseen one is the marginal). Where a game
+On the bandit a recombination-posterior of known conventions is what the adapter that is
+Bayes-optimal under a uniform prior over conventions does (a seen context's arm is known,
+an unseen one is the marginal). Where a game
 can plan against a partner model (`envs.best_response`; blocks, with the ego as P1), the
 ego plays the best response to the posterior's prediction of the partner's moves
 (`ConventionPosterior.predictive`) instead of choosing among heads: a partner that mixes

@@ -27,7 +27,7 @@ from analysis.report.verdicts import (
     no_worse,
     no_worse_margin,
 )
-from analysis.summaries import bayes_optimal_return
+from analysis.summaries import uniform_prior_return
 
 FIXTURE = Path(__file__).parent / "fixtures" / "repro"
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
@@ -400,14 +400,14 @@ def test_lists_of_method_names_read_unambiguously() -> None:
 def test_the_convention_posterior_is_judged_against_its_own_targets(tmp_path: Path) -> None:
     write_bandit_adaptation(tmp_path / "repro")
     game = tmp_path / "repro" / "bandit"
-    # Arms 2: the posterior returns exactly the Bayes-optimal adapter's expectation at steps 0 and 16 on every unit
-    # (0.75, and 0.5 + 0.5 * (1 - 0.75**16 / 2) = 0.99749: AUC 0.874); Arms 3: 0.02 below its Bayes-optimal returns.
+    # Arms 2: the posterior returns exactly the uniform-prior adapter's expectation at steps 0 and 16 on every unit
+    # (0.75, and 0.5 + 0.5 * (1 - 0.75**16 / 2) = 0.99749: AUC 0.874); Arms 3: 0.02 below its uniform-prior returns.
     for population, symmetric, offset in (("bandit-s2-hand", 2, 0.0), ("bandit-s3-hand", 3, -0.02)):
         rows = ["run,method,lam,z_dim,seed,partner,steps,mean_return,stderr,exact_return"]
         for seed in range(3):
             for k in range(2):
                 for step in (0, 16):
-                    v = bayes_optimal_return(4, symmetric, step) + offset
+                    v = uniform_prior_return(4, symmetric, step) + offset
                     rows.append(
                         f"runs/{population}__beyond-posterior/T{seed},modular,0.5,30,{seed},hand-test-{k},{step},{v},0.01,{v}"
                     )
@@ -416,10 +416,13 @@ def test_the_convention_posterior_is_judged_against_its_own_targets(tmp_path: Pa
     beyond = text.split("## Beyond the paper: the convention-posterior adapter")[1]
     name = "convention posterior (beyond the paper)"
     assert (
-        f"| Arms 2 | {name} | AUC within 0.01 of the Bayes-optimal adapter | supported | {name} − Bayes-optimal (0.874) +0.000 [+0.000, +0.000] (n=3) |"
+        f"| Arms 2 | {name} | AUC within 0.01 of the uniform-prior adapter | supported | {name} − uniform-prior adapter (0.874) +0.000 [+0.000, +0.000] (n=3) |"
         in beyond
     )
-    assert f"| Arms 3 | {name} | AUC within 0.01 of the Bayes-optimal adapter | contradicted | {name} − Bayes-optimal" in beyond
+    assert (
+        f"| Arms 3 | {name} | AUC within 0.01 of the uniform-prior adapter | contradicted | {name} − uniform-prior adapter"
+        in beyond
+    )
     assert "![beyond_posterior](figures/beyond_posterior.png)" in beyond
     # Each row says what its adapter read besides the trained ego: the posterior far more than the paper's PPO.
     assert re.search(

@@ -11,13 +11,13 @@ import pytest
 from analysis import loaders
 from analysis.summaries import (
     adaptation_auc,
-    bayes_optimal_return,
     curve_band,
     first_try_difference,
     mean_ci,
     paired_difference,
     seed_summary,
     summarise,
+    uniform_prior_return,
     unpaired_difference,
     value_column,
     with_value,
@@ -179,11 +179,15 @@ def test_adaptation_auc_on_fixture() -> None:
     assert set(with_value(loaders.load_zeroshot(FIXTURE))["value_source"]) == {"exact_return"}
 
 
-def test_bayes_optimal_adapter_known_answers() -> None:
+def test_uniform_prior_adapter_known_answers() -> None:
     # 4 contexts, 2 symmetric: before any episode 2/4 * 1 + 2/4 * 1/2 = 0.75.
-    assert bayes_optimal_return(4, 2, 0) == pytest.approx(0.75)
+    assert uniform_prior_return(4, 2, 0) == pytest.approx(0.75)
     # after 1 episode each symmetric context is unseen with prob 3/4: 0.5 + 0.5 * (1 - 3/8) = 0.8125.
-    assert bayes_optimal_return(4, 2, 1) == pytest.approx(0.8125)
-    assert bayes_optimal_return(4, 0, 0) == 1.0 and bayes_optimal_return(4, 4, 10_000) == pytest.approx(1.0)
+    assert uniform_prior_return(4, 2, 1) == pytest.approx(0.8125)
+    assert uniform_prior_return(4, 0, 0) == 1.0 and uniform_prior_return(4, 4, 10_000) == pytest.approx(1.0)
     with pytest.raises(ValueError, match="symmetric"):
-        bayes_optimal_return(4, 5, 0)
+        uniform_prior_return(4, 5, 0)
+    # Never above the full-information return (the partner's arm known in every context), rising with evidence.
+    for m in range(5):
+        returns = [uniform_prior_return(4, m, t) for t in range(0, 300, 7)]
+        assert all(a <= b <= 1.0 for a, b in zip(returns, returns[1:]))
