@@ -11,6 +11,12 @@ reported and left out of the population.
 The population folder is self-contained: `population.json`, `partners/<name>/` (the kept
 seat's module), `counterparts/<name>/` (its self-play counterpart, for cross-play) and
 `selfplay_report.csv` (every pair: seed, split, passed, score, steps to gate, wall time).
+
+With `fcp` (Fictitious Co-Play, Strouse et al., NeurIPS 2021) a pair also snapshots its
+partner seat before training and at every gate check (`fcp/` in its trial folder, with the
+check's score); a passing pair adds the snapshot before training (`<name>-init`) and the one
+whose score is nearest half its final score (`<name>-mid`, FCP's "past checkpoint") to the
+population, in the pair's split, beside the final seat (`<name>`).
 """
 
 from __future__ import annotations
@@ -53,6 +59,7 @@ from rllib_conv.training.algorithm import base_ppo_config
 from rllib_conv.training.callbacks import STEPS_DONE, STEPS_TOTAL
 from rllib_conv.training.stage import Stage, fit_stage
 from rllib_conv.training.trainable import AlgorithmTrainable
+from rllib_conv.training.weights import learner_module
 
 SEAT_PREFIX = "seat@"
 SHARED_SEAT = "seat@all"
@@ -131,6 +138,37 @@ def selfplay_score(module: Any, cfg: SelfPlayConfig, episodes: int, seed: int) -
     return float(play_episodes(env, seats, episodes, seed).mean())
 
 
+FCP_DIR = "fcp"  # a trial's partner-seat snapshots (`fcp: true`)
+FCP_INDEX = "snapshots.jsonl"  # one line per snapshot: folder, iteration, env steps, score
+
+
+def fcp_snapshots(trial: Path) -> list[dict[str, Any]]:
+    """The partner-seat snapshots a pair kept (`fcp: true`), in the order taken; [] if none."""
+    index = trial / FCP_DIR / FCP_INDEX
+    if not index.is_file():
+        return []
+    # A pair run again after a kill retakes the snapshots after its last checkpoint: the last line of a folder is its own.
+    snapshots = {}
+    for line in index.read_text().splitlines():
+        if line:
+            snapshot = json.loads(line)
+            snapshots[snapshot["folder"]] = snapshot
+    return list(snapshots.values())
+
+
+def fcp_members(snapshots: list[dict[str, Any]], final_score: float) -> dict[str, dict[str, Any]]:
+    """FCP's partners besides the final seat: the snapshot before training ("init") and the one between it and the
+    last (the final seat itself) whose score is nearest half of `final_score` ("mid"; the earliest on a tie; none if
+    the pair passed at its first check)."""
+    if not snapshots:
+        return {}
+    chosen = {"init": snapshots[0]}
+    later = snapshots[1:-1]
+    if later:
+        chosen["mid"] = min(later, key=lambda s: abs(s["score"] - final_score / 2))
+    return chosen
+
+
 class SelfPlayTrainable(AlgorithmTrainable):
     """One self-play pair: trains until it passes the score gate or its step budget runs out."""
 
@@ -139,6 +177,17 @@ class SelfPlayTrainable(AlgorithmTrainable):
         self.algo = build_selfplay_config(self.cfg).build_algo()
         self.passed, self.score, self.steps_to_gate = False, math.nan, None
         self._start = time.perf_counter()
+        if self.cfg.fcp and not fcp_snapshots(self.trial_folder):  # a restored pair keeps the snapshots it took
+            score = selfplay_score(self.algo.env_runner.module, self.cfg, self.cfg.gate.check_episodes, seed=100_000)
+            self._snapshot(0, 0, score)
+
+    def _snapshot(self, iteration: int, steps: int, score: float) -> None:
+        """Save the partner seat's module as it is now, with the score of the check that saw it (`fcp: true`)."""
+        folder = self.trial_folder / FCP_DIR
+        name = f"it{iteration:06d}"
+        learner_module(self.algo)[seat_module_id(self.cfg, self.cfg.partner_agent)].save_to_path(folder / name)
+        with (folder / FCP_INDEX).open("a") as index:  # after the module: an indexed snapshot is always whole
+            index.write(json.dumps({"folder": name, "iteration": iteration, "env_steps": steps, "score": score}) + "\n")
 
     def advance(self) -> dict[str, Any]:
         cfg, gate = self.cfg, self.cfg.gate
@@ -158,6 +207,8 @@ class SelfPlayTrainable(AlgorithmTrainable):
         iteration = self.iteration + 1
         if iteration % gate.check_every == 0 or budget_spent:
             out["gate_check"] = selfplay_score(module, cfg, gate.check_episodes, seed=100_000 + iteration)
+            if cfg.fcp:
+                self._snapshot(iteration, steps, out["gate_check"])
             if out["gate_check"] >= gate.score or budget_spent:
                 self.score = selfplay_score(module, cfg, gate.episodes, seed=pair_seed(cfg.seed, cfg.pair))
                 self.passed = self.score >= gate.score
@@ -202,6 +253,21 @@ def write_population(cfg: SelfPlayConfig, results: tune.ResultGrid, folder: Path
         for sub, agent in (("partners", cfg.partner_agent), ("counterparts", counterpart_agent)):
             seal(shutil.copytree(modules / seat_module_id(cfg, agent), folder / sub / name))
         params = {"greedy": cfg.greedy_partners, "seed": report["seed"]}
+        trial = Path(r.path)
+        for tag, snap in fcp_members(fcp_snapshots(trial), report["score"]).items():
+            member = f"{name}-{tag}"
+            seal(shutil.copytree(trial / FCP_DIR / snap["folder"], folder / "partners" / member))
+            entries.append(
+                PartnerEntry(
+                    name=member,
+                    kind="trained_policy",
+                    params={"checkpoint": f"partners/{member}", **params},
+                    split=split,
+                    checkpoint=f"partners/{member}",
+                    seed=report["seed"],
+                    score=snap["score"],
+                )
+            )
         entries.append(
             PartnerEntry(
                 name=name,
@@ -223,7 +289,8 @@ def write_population(cfg: SelfPlayConfig, results: tune.ResultGrid, folder: Path
         env=cfg.env,
         env_config=cfg.env_config,
         partner_agent=cfg.partner_agent,
-        description=f"self-play partners (seat {cfg.partner_agent}), gate {cfg.gate.score} over {cfg.gate.episodes} episodes",
+        description=f"self-play partners (seat {cfg.partner_agent}), gate {cfg.gate.score} over {cfg.gate.episodes} episodes"
+        + (", with each pair's start and midpoint (Fictitious Co-Play)" if cfg.fcp else ""),
         partners=entries,
     )
     population.save(folder / POPULATION_FILE)

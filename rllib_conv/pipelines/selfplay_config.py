@@ -25,7 +25,9 @@ class SelfPlayConfig(Strict):
 
     `ppo.rollout_per_partner` is the rollout length per iteration. With `shared_seats`
     one module plays both seats (Hanabi); otherwise each seat has its own module and the
-    `partner_agent` seat of each pair becomes a partner.
+    `partner_agent` seat of each pair becomes a partner. With `fcp` the population is
+    Fictitious Co-Play's (Strouse et al., NeurIPS 2021): each passing pair's partner seat
+    also at its start and midway, as partners of the pair's split.
     """
 
     name: FolderName = "selfplay"
@@ -38,6 +40,11 @@ class SelfPlayConfig(Strict):
     shared_seats: bool = False
     partner_agent: str = "player_1"
     greedy_partners: bool = True
+    fcp: bool = Field(
+        False,
+        description="also keep each passing pair's partner seat as it was before training and midway (the gate check "
+        "nearest half its final score) as partners <name>-init and <name>-mid: Fictitious Co-Play's partners",
+    )
     model: ModelSettings = Field(default_factory=ModelSettings)
     ppo: PPOSettings = Field(default_factory=PPOSettings)
     run: RunSettings = Field(default_factory=RunSettings)

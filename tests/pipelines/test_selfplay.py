@@ -24,7 +24,7 @@ from rllib_conv.modules.multi import replica_id
 from rllib_conv.partners.trained import TrainedPolicyPartner
 from rllib_conv.pipelines import selfplay
 from rllib_conv.pipelines.crossplay import crossplay, write_crossplay
-from rllib_conv.pipelines.selfplay import train_population
+from rllib_conv.pipelines.selfplay import fcp_members, train_population
 from rllib_conv.pipelines.selfplay_config import SelfPlayConfig
 from rllib_conv.training.algorithm import build_ppo_config
 from rllib_conv.training.ego_setup import resolve
@@ -241,3 +241,33 @@ def test_the_gate_scores_pairs_as_every_score_is_measured(monkeypatch) -> None:
     with pytest.raises(Scored) as found:
         selfplay.selfplay_score(None, cfg, episodes=1, seed=0)
     assert found.value.args == ("bandit", cfg.env_config)
+
+
+def test_fcp_keeps_the_start_and_the_check_nearest_half_the_final_score() -> None:
+    # The last snapshot is the passing check: the final seat itself, never the midpoint (0.50 is not a candidate).
+    snaps = [{"folder": f"it{i}", "score": v} for i, v in enumerate([0.10, 0.30, 0.53, 0.47, 0.50])]
+    assert {k: s["folder"] for k, s in fcp_members(snaps, final_score=0.98).items()} == {"init": "it0", "mid": "it3"}
+    assert {k: s["folder"] for k, s in fcp_members(snaps[:2], final_score=0.98).items()} == {"init": "it0"}
+    assert fcp_members([], 1.0) == {}
+
+
+@pytest.mark.slow
+def test_an_fcp_population_holds_each_pair_at_its_start_midway_and_end(ray_session, tmp_path) -> None:
+    raw = selfplay_raw(name="fcp", train_pairs=1, test_pairs=1, fcp=True)
+    raw["gate"] = {**raw["gate"], "check_episodes": 100, "episodes": 200}
+    population, report = train_population(
+        config_files.checked(raw, SelfPlayConfig), out=tmp_path / "pops", storage=tmp_path / "runs"
+    )
+    assert report["passed"].all()
+    names = [e.name for e in population.partners]
+    assert names[:2] == ["sp00-init", "sp00-mid"] and names[-1] == "sp01" and len(names) == 6
+    by_name = {e.name: e for e in population.partners}
+    for pair in ("sp00", "sp01"):
+        start, mid, end = (by_name[n] for n in (f"{pair}-init", f"{pair}-mid", pair))
+        assert start.split == mid.split == end.split
+        # Before training a pair coordinates only by chance; it ends above the gate; the midpoint lies between.
+        assert start.score < mid.score < end.score
+    # The snapshots are partners like any other: they load from the folder and act.
+    reloaded = partners.get(str(tmp_path / "pops" / "fcp"))
+    assert [e.name for e in reloaded.partners] == names
+    assert reloaded.partners[0].build().act_batch(OBS, MASK).shape == (len(OBS),)
