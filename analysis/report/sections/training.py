@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import pandas as pd
+
 from analysis import figures, loaders
 from analysis.paper import label_name, population_name
 from analysis.report.context import Context
@@ -14,8 +16,9 @@ def training_section(ctx: Context) -> str:
         lines.append("No training logs (runs/<population>__<label>/*/progress.csv) found.")
         return "\n".join(lines)
     lines.append(
-        "Final return of each trained ego with its training partners (eval.json: 200 episodes per partner, the exact expectation on the bandit), "
-        "averaged per seed over its training partners, then over seeds with a 95% t-interval over seeds (n = seeds); the game's maximum beside it."
+        "Final return of each trained ego with its training partners (eval.json: `run.eval_episodes` episodes per partner, 200 unless the "
+        "plan's train_overrides set fewer; the exact expectation on the bandit), averaged per seed over its training partners, then over "
+        "seeds with a 95% t-interval over seeds (n = seeds); the game's maximum beside it (— where the game states none)."
     )
     lines.append("")
     rows = []
@@ -27,7 +30,7 @@ def training_section(ctx: Context) -> str:
                 population_name(r.population),
                 label_name(r.label),
                 fmt_ci(r.mean, r.lo, r.hi, r.n, digits(r.game)),
-                f"{top:g}",
+                "—" if pd.isna(top) else f"{top:g}",  # no stated maximum (Overcooked)
             ]
         )
     lines.append(md_table(["game", "population", "method", "final training return", "max"], rows))
