@@ -23,7 +23,7 @@ from rllib_conv.common.run_folders import trial_folders
 from rllib_conv.pipelines.pair import pair
 from rllib_conv.pipelines.pair_config import PairConfig
 from rllib_conv.training.checkpoints import last_checkpoint
-from rllib_conv.training.evaluate import bandit_exact_return, ego_head_partner, load_module, task_probs
+from rllib_conv.training.evaluate import ego_head_partner, load_module, task_probs
 
 pytestmark = pytest.mark.slow  # every test here trains (RLlib, Tune or `rllib-conv` subprocesses)
 
@@ -119,9 +119,11 @@ def test_pair_an_ego_head_with_a_population_member_matches_the_exact_evaluation(
     module = load_module(last_checkpoint(trial))
     env = envs.make("bandit", symmetric=1)
     partner = partners.get("bandit-s1-hand").entries("train")[1].build()
-    assert row["exact_return"] == pytest.approx(
-        bandit_exact_return(ego_head_partner(module, "ego@hand-train-1"), env, partner), abs=1e-6
-    )
+    # By hand: the ego's probability of the partner's one arm in each context, times its prize, over the contexts.
+    contexts, mask = np.eye(env.num_contexts, dtype=np.float32), np.ones((env.num_contexts, env.num_arms), dtype=np.int8)
+    probs, arms = ego_head_partner(module, "ego@hand-train-1").action_probs(contexts, mask), partner.act_batch(contexts, mask)
+    rows = np.arange(env.num_contexts)
+    assert row["exact_return"] == pytest.approx(float(np.mean(probs[rows, arms] * env.prizes[rows, arms])), abs=1e-6)
     assert (row["seat_0"], row["seat_1"], row["episodes"]) == (seats[0], seats[1], 50)
 
 

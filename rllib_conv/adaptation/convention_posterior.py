@@ -221,6 +221,7 @@ class PosteriorPlayer(Partner):
     """
 
     kind = "convention_posterior"
+    learns_in_play = True
 
     def __init__(
         self,

@@ -34,6 +34,8 @@ StatesFn = Callable[[dict[str, Any]], tuple[np.ndarray, np.ndarray]]
 KeyFn = Callable[[np.ndarray], int]  # an observation -> the situation it is (see `convention_keys`)
 # (env_config, ego_agent) -> a `best_response.BestResponse`, or None for seats it cannot plan for.
 BestResponseFactory = Callable[[dict[str, Any], str], Any]
+# ({agent: policy with action_probs}, env_config) -> the exact expected score, or None where it cannot be known.
+ExactReturnFn = Callable[[dict[str, Any], dict[str, Any]], float | None]
 
 
 @dataclass(frozen=True)
@@ -52,6 +54,7 @@ class GameRecord:
     states: StatesFn | None = None  # the ego's every state, where a game can list them; None: the marginals sample play
     convention_key: KeyFn | None = None  # None: each move is its own situation
     best_response: BestResponseFactory | None = None  # None: the ego cannot plan against a partner model
+    exact_return: ExactReturnFn | None = None  # None: scores come from sampled episodes only
     # What a partner's observation shows that the ego's seat never observes (Hanabi: the ego's own hand). None:
     # the partner sees nothing the ego cannot know from its own observations and moves, so an adapter may read
     # the partner's moves in the situation the partner saw (`adaptation.registry.check_information`).

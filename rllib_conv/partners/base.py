@@ -22,6 +22,9 @@ class Partner(ABC):
 
     kind: ClassVar[str] = ""
     deterministic: ClassVar[bool] = False
+    # Partners that learn from the other seat's moves during an episode (`observe_other`) set it: their
+    # `action_probs` then hold at the evidence so far, so a game's exact return cannot score a whole episode by them.
+    learns_in_play: ClassVar[bool] = False
 
     def __init__(self, name: str) -> None:
         self.name = name

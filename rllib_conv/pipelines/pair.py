@@ -4,8 +4,9 @@ Each seat (its syntax: `rllib-conv pair --help`) becomes a fixed `Partner`: an e
 the task module alone of a trained ego's last checkpoint (sampling its policy), a
 population member, or a scripted kind built from its parameters. The seats play
 `episodes` episodes of one game (`partners.episodes.episode_stream`); the result is their
-mean return, its standard error and, on the bandit, the exact expected return computed
-from the players' action probabilities (contexts uniform).
+mean return, its standard error and, where the game has one (the bandit, blocks: the game
+record's `exact_return`), the exact expected return computed from the players' action
+probabilities.
 """
 
 from __future__ import annotations
@@ -22,9 +23,7 @@ import yaml
 from rllib_conv import envs, partners
 from rllib_conv.common.atomic_files import replaced_atomically
 from rllib_conv.common.run_folders import trial_folders
-from rllib_conv.envs.bandit import CollaborativeBanditEnv
 from rllib_conv.modules.multi import TASK_ID
-from rllib_conv.partners.bandit import BanditConventionPartner
 from rllib_conv.partners.base import Partner
 from rllib_conv.partners.episodes import play_episodes
 from rllib_conv.partners.trained import PolicyPartner
@@ -101,28 +100,8 @@ def pair_game(seats: list[Seat], env: str | None = None, env_config: dict[str, A
     return env, env_config
 
 
-def _probs(player: Partner, obs: np.ndarray, mask: np.ndarray) -> np.ndarray | None:
-    """A bandit player's action probabilities [contexts, arms]; None when they cannot be known exactly."""
-    if isinstance(player, PolicyPartner):
-        p = player.probs(obs, mask)
-        return np.eye(p.shape[1])[p.argmax(axis=1)] if player.greedy else p
-    if isinstance(player, BanditConventionPartner):  # deterministic: its one arm per context
-        return np.eye(mask.shape[1])[player.act_batch(obs, mask)]
-    return None
-
-
-def bandit_exact(env: CollaborativeBanditEnv, players: list[Partner]) -> float:
-    """The exact expected return of two bandit players (NaN unless both policies are known exactly)."""
-    obs = np.eye(env.num_contexts, dtype=np.float32)
-    mask = np.ones((env.num_contexts, env.num_arms), dtype=np.int8)
-    probs = [_probs(p, obs, mask) for p in players]
-    if any(p is None for p in probs):
-        return math.nan
-    return float(np.mean(np.sum(probs[0] * probs[1] * env.prizes, axis=1)))
-
-
 def pair(cfg: PairConfig) -> pd.DataFrame:
-    """Play the seats of `cfg` together; one row: the game, seats, mean return, stderr and (bandit) exact return."""
+    """Play the seats of `cfg` together; one row: the game, seats, mean return, stderr and the exact return (where the game has one)."""
     seats = [seat(text, cfg.seed) for text in cfg.seats]
     game, env_config = pair_game(seats, cfg.env, cfg.env_config)
     try:
@@ -139,7 +118,8 @@ def pair(cfg: PairConfig) -> pd.DataFrame:
         scores = play_episodes(env, dict(zip(agents, players)), cfg.episodes, cfg.seed)
     except RuntimeError as exc:  # torch: a module built for another observation or action size
         raise ValueError(f"the seats do not fit {game} {env_config}: {' '.join(str(exc).split())}") from None
-    exact = bandit_exact(env, players) if isinstance(env, CollaborativeBanditEnv) else math.nan
+    exact_fn = envs.game(game).exact_return  # the bandit and blocks: from the players' own probabilities
+    exact = exact_fn(dict(zip(agents, players)), env_config) if exact_fn is not None else None
     stderr = float(scores.std(ddof=1) / np.sqrt(len(scores))) if len(scores) > 1 else 0.0
     row = {"env": game, "env_config": str(env_config), **{f"seat_{i}": s.text for i, s in enumerate(seats)}}
     row |= {
@@ -147,7 +127,7 @@ def pair(cfg: PairConfig) -> pd.DataFrame:
         "seed": cfg.seed,
         "mean_return": float(scores.mean()),
         "stderr": stderr,
-        "exact_return": exact,
+        "exact_return": math.nan if exact is None else exact,
     }
     return pd.DataFrame([row])
 

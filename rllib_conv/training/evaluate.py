@@ -11,7 +11,6 @@ import torch
 
 from rllib_conv import envs
 from rllib_conv.common.run_folders import RL_MODULE_DIR
-from rllib_conv.envs.bandit import CollaborativeBanditEnv
 from rllib_conv.modules.multi import ConventionMultiRLModule
 from rllib_conv.partners.base import Partner
 from rllib_conv.partners.episodes import play_episodes
@@ -49,21 +48,11 @@ def ego_head_partner(module: ConventionMultiRLModule, head_id: str, seed: int = 
     return PolicyPartner(head_id, logits, greedy=False, seed=seed, memo=True)
 
 
-def bandit_exact_return(ego: Partner, env: CollaborativeBanditEnv, partner: Partner) -> float:
-    """Return the exact expected return of the `ego` player (its `action_probs`) with a fixed bandit partner (contexts uniform)."""
-    contexts = np.eye(env.num_contexts, dtype=np.float32)
-    mask = np.ones((env.num_contexts, env.num_arms), dtype=np.int8)
-    probs = ego.action_probs(contexts, mask)
-    arms = partner.act_batch(contexts, mask)
-    rows = np.arange(env.num_contexts)
-    return float(np.mean(probs[rows, arms] * env.prizes[rows, arms]))
-
-
 def check_episodes(episodes: int, env_name: str, env_config: dict[str, Any]) -> None:
-    """ValueError unless `episodes` can score this game: 0 (no sampled episodes) only where the return is exact (one-step bandits)."""
-    if episodes == 0 and not isinstance(envs.make(env_name, **env_config), CollaborativeBanditEnv):
+    """ValueError unless `episodes` can score this game: 0 (no sampled episodes) only where the game has an exact return."""
+    if episodes == 0 and envs.game(env_name).exact_return is None:
         raise ValueError(
-            f"episodes=0 scores by the exact expected return, which only the one-step bandits have; {env_name!r} needs episodes >= 1"
+            f"episodes=0 scores by the exact expected return, which {env_name!r} does not have; {env_name!r} needs episodes >= 1"
         )
 
 
@@ -79,20 +68,26 @@ def player_return(
 ) -> dict[str, float]:
     """Return the mean return of the `ego` player with `partner` over `episodes` sampled episodes, and its standard error.
 
-    One-step bandits are also scored exactly from the two policies (`exact`); there
-    `episodes=0` plays nothing (`mean` and `stderr` NaN). ValueError for `episodes=0` elsewhere.
+    Games with an exact return (the game record's `exact_return`: the bandit, blocks) are also
+    scored exactly from the two policies (`exact`); there `episodes=0` plays nothing (`mean`
+    and `stderr` NaN). ValueError for `episodes=0` where the game or these players have none.
     """
     check_episodes(episodes, env_name, env_config)
     env = envs.make_scored(env_name, **env_config)
+    players = {ego_agent: ego, partner_agent: partner}
     out = {"mean": math.nan, "stderr": math.nan}
     if episodes:
-        scores = play_episodes(env, {ego_agent: ego, partner_agent: partner}, episodes, seed)
+        scores = play_episodes(env, players, episodes, seed)
         out = {
             "mean": float(scores.mean()),
             "stderr": float(scores.std(ddof=1) / np.sqrt(len(scores))) if len(scores) > 1 else 0.0,
         }
-    if isinstance(env, CollaborativeBanditEnv):
-        out["exact"] = bandit_exact_return(ego, env, partner)
+    exact = envs.game(env_name).exact_return
+    value = None if exact is None else exact(players, env_config)
+    if value is not None:
+        out["exact"] = value
+    elif not episodes:
+        raise ValueError(f"episodes=0 needs an exact return, and {ego.name!r} with {partner.name!r} have none on {env_name!r}")
     return out
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -83,9 +84,13 @@ def test_bandit_curves_without_sampled_episodes_keep_their_exact_returns(bandit_
 
 
 def test_no_sampled_episodes_is_refused_where_no_exact_return_exists() -> None:
-    partner = partners.get("blocks-perm").partners[0].build()
-    with pytest.raises(ValueError, match="episodes=0 .* 'blocks' needs episodes >= 1"):
-        player_return(partner, "blocks", {}, partner, "player_0", "player_1", episodes=0)
+    scripted = partners.get("hanabi-scripted").partners[0].build()
+    with pytest.raises(ValueError, match="episodes=0 .* 'hanabi' needs episodes >= 1"):
+        player_return(scripted, "hanabi", {}, scripted, "player_0", "player_1", episodes=0)
+    # Blocks has one: two permutation partners are scored exactly with no episode played.
+    blocks = partners.get("blocks-perm").partners[0].build()
+    score = player_return(blocks, "blocks", {}, blocks, "player_0", "player_1", episodes=0)
+    assert math.isnan(score["mean"]) and 0.0 <= score["exact"] <= 20.0
 
 
 @pytest.mark.parametrize(

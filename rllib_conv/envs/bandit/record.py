@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from rllib_conv.envs.bandit.env import CollaborativeBanditEnv
+from rllib_conv.envs.bandit.exact import bandit_exact_return
 from rllib_conv.envs.bandit.keys import bandit_context
 from rllib_conv.envs.bandit.oracle import bandit_oracle, bandit_states
 from rllib_conv.envs.defaults import AdaptDefaults, TrainingDefaults, ZeroShotDefaults
@@ -19,6 +20,7 @@ BANDIT = GameRecord(
     oracle=bandit_oracle,
     states=bandit_states,
     convention_key=bandit_context,
+    exact_return=bandit_exact_return,
     max_score=1.0,  # Sec. 4.1: "the maximum score ... is 1"
     partners=("rllib_conv.partners.bandit", "rllib_conv.partners.user_study"),
 )

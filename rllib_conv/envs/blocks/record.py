@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from rllib_conv.envs.blocks.best_response import blocks_best_response
 from rllib_conv.envs.blocks.env import BlockPlacingEnv
+from rllib_conv.envs.blocks.exact import blocks_exact_return
 from rllib_conv.envs.blocks.keys import blocks_observation
 from rllib_conv.envs.blocks.oracle import blocks_canonical, blocks_oracle
 from rllib_conv.envs.defaults import AdaptDefaults, TrainingDefaults, ZeroShotDefaults
@@ -23,6 +24,7 @@ BLOCKS = GameRecord(
     canonical=blocks_canonical,
     convention_key=blocks_observation,
     best_response=blocks_best_response,
+    exact_return=blocks_exact_return,
     max_score=20.0,  # Sec. 5: "a maximum of 20 points per game"
     partners=("rllib_conv.partners.blocks",),
 )
