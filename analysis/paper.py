@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from rllib_conv.common.methods import (
     BEYOND_GUARDED,
     BEYOND_POSTERIOR,
+    GUARDED,
     HEAD_PENALTY,
     HEAD_PENALTY_PICKED,
     LAM0,
@@ -77,6 +78,7 @@ LABEL_NAMES: dict[str, str] = {
     HEAD_PENALTY: "ours λ=0.5 + head penalty",
     PICKED: "ours λ=0.5, adapting from a picked head",
     HEAD_PENALTY_PICKED: "ours λ=0.5 + head penalty, adapting from a picked head",
+    GUARDED: "ours λ=0.5, its fine-tuning guarded",
     BEYOND_POSTERIOR: "convention posterior (beyond the paper)",
     BEYOND_GUARDED: "guarded convention posterior (beyond the paper)",
     LOW_Z: "ours λ=0.5, low-dim z",

@@ -109,10 +109,10 @@ def test_no_shipped_plan_or_study_game_gives_an_adapter_more_than_the_ego_sees()
 def test_a_plan_asking_for_the_posterior_on_hanabi_is_refused_before_it_runs(tmp_path) -> None:
     text = shipped_plan("hanabi").read_text()
     bad = text.replace(
-        "guarded: {base: modular-lam0.5, settings: {guard: true}}",
-        "guarded: {base: modular-lam0.5, settings: {head_init: posterior}}",
+        "modular-lam0.5-guarded: {base: modular-lam0.5, settings: {guard: true}}",
+        "modular-lam0.5-guarded: {base: modular-lam0.5, settings: {head_init: posterior}}",
     )
     assert bad != text
     (tmp_path / "plan.yaml").write_text(bad)
-    with pytest.raises(ValueError, match=r"plan\.yaml.*adapt_variants\.guarded: head_init 'posterior' .* the ego's own hand"):
+    with pytest.raises(ValueError, match=r"plan\.yaml.*adapt_variants\.modular-lam0\.5-guarded: head_init 'posterior' .* the ego's own hand"):
         plan_for("hanabi", path=tmp_path / "plan.yaml")

@@ -11,6 +11,8 @@ from rllib_conv.pipelines.train import run
 from rllib_conv.training import experiment
 
 PATH = "rllib_conv.envs.bandit:CollaborativeBanditEnv"
+# A game record named by path keeps what the record knows (its exact return); a bare env class has none.
+RECORD_PATH = "rllib_conv.envs.bandit.record:BANDIT"
 
 
 def test_an_import_path_names_a_game() -> None:
@@ -25,7 +27,7 @@ def test_an_import_path_names_a_game() -> None:
 @pytest.mark.slow
 def test_a_population_of_an_import_path_game_trains_through_tune(ray_session, tmp_path) -> None:
     # The Tune trial runs in another process, where nothing was `register`ed: the name alone must do.
-    pop = partners.get("bandit-s1-hand").model_copy(update={"name": "by-path", "env": PATH})
+    pop = partners.get("bandit-s1-hand").model_copy(update={"name": "by-path", "env": RECORD_PATH})
     pop.save(tmp_path / "pop.json")
     raw = {
         "name": "path",

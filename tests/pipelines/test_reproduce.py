@@ -70,7 +70,7 @@ def test_blocks_plan_adapts_ours_from_a_picked_head_and_by_the_plain_and_guarded
         ("beyond-posterior", {"head_init": "posterior"}),
         ("beyond-guarded", {"head_init": "posterior", "guard": True}),
     ]
-    assert [(v.label, v.settings) for v in plan_for("hanabi").adapt_variants][1:] == [("guarded", {"guard": True})]
+    assert [(v.label, v.settings) for v in plan_for("hanabi").adapt_variants][1:] == [("modular-lam0.5-guarded", {"guard": True})]
     # Adapt-only variants train nothing; each runs where its base egos are in the (narrowed) plan.
     narrowed = Reproduction(narrow(plan, ["blocks-perm", "blocks-selfplay"], ["agg"]), Path("unused"))
     trained = [f"{p}__{m}" for p in ("blocks-perm", "blocks-selfplay") for m in ("modular-lam0.5", "agg")]
