@@ -2,10 +2,11 @@
 
 Reads only files (through `analysis.loaders`): per population and method the env steps
 its egos trained for; the adaptation AUC (mean return over the evaluation points, per
-(seed, test partner) curve), on the bandit beside the Bayes-optimal adapter's AUC at the
-same points (`analysis.summaries.bayes_optimal_return`); the zero-shot return; the
-marginal distance. Intervals are the report's: each seed's mean over its test partners,
-then a t-interval over seeds (`analysis.summaries.seed_summary`; n = seeds).
+(seed, test partner) curve), on the bandit beside the uniform-prior adapter's AUC at the
+same points (`analysis.summaries.uniform_prior_return`); the zero-shot return; the
+marginal distance; each held-out agent's score (Overcooked's human proxies). Intervals are
+the report's: each seed's mean over its test partners, then a t-interval over seeds
+(`analysis.summaries.seed_summary`; n = seeds).
 Writes `benchmarks/results/reproduce_<name>.json` with the reproduce command recorded in
 the folder's plan.json.
 
@@ -21,7 +22,7 @@ from pathlib import Path
 import pandas as pd
 
 from analysis import loaders
-from analysis.summaries import adaptation_auc, bayes_optimal_return, seed_summary
+from analysis.summaries import adaptation_auc, uniform_prior_return, seed_summary
 from benchmarks._common import write_result
 
 BANDIT_CONTEXTS = 4
@@ -34,16 +35,16 @@ def _cis(df: pd.DataFrame, value: str) -> dict[tuple[str, str], dict]:
     return {(r.population, r.label): {"mean": r.mean, "lo": r.lo, "hi": r.hi, "n": int(r.n)} for r in table.itertuples()}
 
 
-def _bayes_auc(population: str, steps: list[int]) -> float | None:
+def _uniform_prior_auc(population: str, steps: list[int]) -> float | None:
     match = re.match(r"bandit-s(\d)-", population)
     if not match or not steps:
         return None
-    return sum(bayes_optimal_return(BANDIT_CONTEXTS, int(match.group(1)), t) for t in steps) / len(steps)
+    return sum(uniform_prior_return(BANDIT_CONTEXTS, int(match.group(1)), t) for t in steps) / len(steps)
 
 
 def summary(root: Path) -> dict:
-    """Env steps each ego trained for, adaptation AUC (with the Bayes-optimal gap), zero-shot and marginals per population and method."""
-    out: dict = {"training": [], "adaptation": [], "zeroshot": [], "marginals": []}
+    """Env steps each ego trained for, adaptation AUC (with the gap to the uniform-prior adapter), zero-shot, marginals and held-out scores per population and method."""
+    out: dict = {"training": [], "adaptation": [], "zeroshot": [], "marginals": [], "heldout": []}
     training = loaders.load_training(root)
     if not training.empty:
         last = training.groupby(["population", "label", "run"])["steps"].max()
@@ -60,10 +61,10 @@ def summary(root: Path) -> dict:
             steps = sorted(
                 curves.loc[(curves["population"] == population) & (curves["label"] == label), "steps"].unique().tolist()
             )
-            bayes = _bayes_auc(population, steps)
-            if bayes is not None:
-                row["bayes_optimal_auc"] = bayes
-                row["gap_to_bayes_optimal"] = bayes - row["auc"]["mean"]
+            reference = _uniform_prior_auc(population, steps)
+            if reference is not None:
+                row["uniform_prior_auc"] = reference
+                row["gap_to_uniform_prior"] = reference - row["auc"]["mean"]
             out["adaptation"].append(row)
     zeroshot = loaders.load_zeroshot(root)
     if not zeroshot.empty:
@@ -75,6 +76,13 @@ def summary(root: Path) -> dict:
         # By label, not (method, lam): low-dimensional z at lam 0.5 is a different ego from modular at lam 0.5.
         for (population, label), ci in _cis(marginals, "distance").items():
             out["marginals"].append({"population": population, "method": label, "distance": ci})
+    heldout = loaders.load_heldout(root)
+    if not heldout.empty:
+        # Each agent's seeds against every held-out member: per seed the mean over the members, then over seeds.
+        table = seed_summary(heldout.rename(columns={"agent": "label"}).assign(population=""), BY, "mean_return")
+        for r in table.itertuples():
+            ci = {"mean": r.mean, "lo": r.lo, "hi": r.hi, "n": int(r.n)}
+            out["heldout"].append({"agent": r.label, "score": ci})
     return out
 
 
