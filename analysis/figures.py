@@ -35,6 +35,7 @@ from rllib_conv.common.methods import (  # noqa: E402
     LOW_Z,
     PAPER_METHOD,
     PICKED,
+    PPO_BC,
     SCRATCH,
 )
 from rllib_conv.common.methods import LABELS as LABEL_ORDER  # noqa: E402  (methods in the order of the paper's legends)
@@ -48,6 +49,7 @@ LABEL_STYLES: dict[str, tuple[str, str | tuple]] = {
     "no_task_logits": ("#56B4E9", "-."),  # sky blue
     "maml": ("#CC79A7", "-"),  # reddish purple
     "oracle": ("#009E73", "-"),  # bluish green (the paper's "green oracle curve")
+    PPO_BC: ("#F0E442", (0, (3, 1, 1, 1, 1, 1, 1, 1))),  # yellow, dash-dot-dot-dot: Carroll et al.'s PPO_BC (Overcooked)
     SCRATCH: ("#000000", ":"),
     LAM0: ("#E69F00", "--"),  # orange
     LAM03: ("#882255", (0, (3, 1, 1, 1))),  # wine, dash-dot

@@ -29,6 +29,7 @@ from rllib_conv.common.methods import (
     LOW_Z,
     PAPER_METHOD,
     PICKED,
+    PPO_BC,
     SCRATCH,
 )
 
@@ -85,6 +86,7 @@ LABEL_NAMES: dict[str, str] = {
     "agg": "BaselineAgg",
     "no_task_logits": "BaselineModular",
     "maml": "First-Order MAML",
+    PPO_BC: "PPO_BC (BaselineAgg with the BC proxies)",
     "oracle": "oracle marginals",
     SCRATCH: "from scratch",
 }

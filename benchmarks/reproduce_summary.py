@@ -22,7 +22,7 @@ from pathlib import Path
 import pandas as pd
 
 from analysis import loaders
-from analysis.summaries import adaptation_auc, uniform_prior_return, seed_summary
+from analysis.summaries import adaptation_auc, seed_summary, uniform_prior_return
 from benchmarks._common import write_result
 
 BANDIT_CONTEXTS = 4

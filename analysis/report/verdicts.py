@@ -289,7 +289,7 @@ def variants_block(
         return []
     return [
         "",
-        "### Variants of ours not checked against the paper (other λ, low-dim z, head penalty, head pick, ...)",
+        "### Variants of ours and other agents not checked against the paper (other λ, low-dim z, head penalty, head pick, PPO_BC, ...)",
         "",
         "Judged by the same paired rule as the paper's claims; they never change a verdict on the paper, which is checked on ours λ=0.5 alone.",
         "",

@@ -157,8 +157,9 @@ GUARDED = f"{PAPER_METHOD}-guarded"  # ours, its fine-tuning guarded (not in the
 BEYOND_POSTERIOR = "beyond-posterior"  # ours' egos adapting by the convention posterior (not in the paper)
 BEYOND_GUARDED = "beyond-guarded"  # the same, its fine-tuning guarded (not in the paper)
 SCRATCH = "scratch"  # adapting a fresh network (seeded as ours)
+PPO_BC = "ppo_bc"  # BaselineAgg trained with Overcooked's BC proxies: Carroll et al.'s PPO_BC, their human-aware agent
 BASELINES: tuple[str, ...] = ("agg", "no_task_logits", "maml")  # the paper's baselines, by method name
 # Variants beyond the paper's: the reports list them apart from the paper's claims.
 EXTENSIONS: tuple[str, ...] = (HEAD_PENALTY, PICKED, HEAD_PENALTY_PICKED, GUARDED, BEYOND_POSTERIOR, BEYOND_GUARDED)
 # Every label of the shipped plans, in the order figures and tables show them.
-LABELS: tuple[str, ...] = (LAM0, LAM03, PAPER_METHOD, *EXTENSIONS, LOW_Z, *BASELINES, "oracle", SCRATCH)
+LABELS: tuple[str, ...] = (LAM0, LAM03, PAPER_METHOD, *EXTENSIONS, LOW_Z, *BASELINES, PPO_BC, "oracle", SCRATCH)

@@ -114,5 +114,7 @@ def test_a_plan_asking_for_the_posterior_on_hanabi_is_refused_before_it_runs(tmp
     )
     assert bad != text
     (tmp_path / "plan.yaml").write_text(bad)
-    with pytest.raises(ValueError, match=r"plan\.yaml.*adapt_variants\.modular-lam0\.5-guarded: head_init 'posterior' .* the ego's own hand"):
+    with pytest.raises(
+        ValueError, match=r"plan\.yaml.*adapt_variants\.modular-lam0\.5-guarded: head_init 'posterior' .* the ego's own hand"
+    ):
         plan_for("hanabi", path=tmp_path / "plan.yaml")
