@@ -3,7 +3,7 @@
     python -m benchmarks.compare_summaries OLD.json NEW.json --name NAME
 
 For each number both files hold (adaptation AUC, start and end return; zero-shot return;
-marginal distance; per population and method), prints the old interval, the new mean and
+marginal distance; held-out score; per population and method), prints the old interval, the new mean and
 interval, whether the new mean lies inside the old interval and whether the two intervals
 overlap. Writes `benchmarks/results/<NAME>.json`. The speed issue's check: after a change
 to how training runs, every headline number of the committed reports lies inside the old
@@ -18,7 +18,12 @@ from pathlib import Path
 
 from benchmarks._common import write_result
 
-METRICS = {"adaptation": ("auc", "start", "end"), "zeroshot": ("return",), "marginals": ("distance",)}
+METRICS = {
+    "adaptation": ("auc", "start", "end"),
+    "zeroshot": ("return",),
+    "marginals": ("distance",),
+    "heldout": ("score",),  # per agent against the held-out population
+}
 
 
 def _numbers(summary: dict) -> dict[tuple[str, str, str, str], dict]:

@@ -79,10 +79,9 @@ def summary(root: Path) -> dict:
     heldout = loaders.load_heldout(root)
     if not heldout.empty:
         # Each agent's seeds against every held-out member: per seed the mean over the members, then over seeds.
-        table = seed_summary(heldout.rename(columns={"agent": "label"}).assign(population=""), BY, "mean_return")
-        for r in table.itertuples():
-            ci = {"mean": r.mean, "lo": r.lo, "hi": r.hi, "n": int(r.n)}
-            out["heldout"].append({"agent": r.label, "score": ci})
+        partners = loaders.read_plan(root).get("heldout", {}).get("partners", "")
+        for (_, agent), ci in _cis(heldout.rename(columns={"agent": "label"}).assign(population=partners), "mean_return").items():
+            out["heldout"].append({"population": partners, "method": agent, "score": ci})
     return out
 
 

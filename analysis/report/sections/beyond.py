@@ -136,7 +136,8 @@ def beyond_section(ctx: Context) -> str:
     lines += [
         "",
         "Information used: what each adapter reads besides the trained ego (`rllib_conv/common/adapters.py`); the paper's "
-        "methods adapt by PPO on the returns of their rollouts alone; the oracle's task logits are the true marginals.",
+        "methods adapt by PPO on the returns of their rollouts alone; the oracle's task logits are the true marginals. "
+        "Situation keys and a game model are read only where the game has them (its record's `convention_key` and `best_response`).",
         "",
         md_table(["population", "method", "return at step 0", "AUC", "information used"], rows),
     ]
@@ -148,6 +149,9 @@ def beyond_section(ctx: Context) -> str:
             found = _target(ctx, population, here, label)
             if found is not None:
                 targets.append([population_name(population), label_name(label), *found])
+    if not targets:
+        # Targets are declared before a run (this module's docstring); none is made up afterwards.
+        return "\n".join([*lines, "", "### Targets", "", "No target was declared for these populations."])
     lines += [
         "",
         "### Targets",
