@@ -25,6 +25,7 @@ from matplotlib.figure import Figure  # noqa: E402
 from analysis.paper import label_name, population_name  # noqa: E402
 from analysis.summaries import curve_band, seed_summary, with_value  # noqa: E402
 from rllib_conv.common.methods import (  # noqa: E402
+    BC_TRAINED,
     BEYOND_GUARDED,
     BEYOND_POSTERIOR,
     GUARDED,
@@ -57,7 +58,11 @@ LABEL_STYLES: dict[str, tuple[str, str | tuple]] = {
     HEAD_PENALTY: ("#44AA99", (0, (5, 1, 1, 1, 1, 1))),  # teal, dash-dot-dot (not in the paper)
     PICKED: ("#999933", (0, (8, 2))),  # olive, long dashes (not in the paper)
     HEAD_PENALTY_PICKED: ("#888888", (0, (8, 2, 1, 2))),  # grey, long dash-dot (not in the paper)
-    GUARDED: ("#AA4499", (0, (2, 2))),  # purple, short dashes: ours, its fine-tuning guarded (not in the paper)
+    GUARDED: ("#AA4499", (0, (2, 2))),
+    BC_TRAINED: (
+        "#88CCEE",
+        (0, (5, 2, 1, 2)),
+    ),  # cyan, dash-dot: ours trained with the BC proxies (not in the paper)  # purple, short dashes: ours, its fine-tuning guarded (not in the paper)
     BEYOND_POSTERIOR: ("#661100", "-"),  # dark brown, solid: the adapter beyond the paper
     BEYOND_GUARDED: ("#CC6677", (0, (4, 2))),  # rose, dashes: the same adapter, its fine-tuning guarded
 }

@@ -19,6 +19,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from rllib_conv.common.methods import (
+    BC_TRAINED,
     BEYOND_GUARDED,
     BEYOND_POSTERIOR,
     GUARDED,
@@ -80,6 +81,7 @@ LABEL_NAMES: dict[str, str] = {
     PICKED: "ours λ=0.5, adapting from a picked head",
     HEAD_PENALTY_PICKED: "ours λ=0.5 + head penalty, adapting from a picked head",
     GUARDED: "ours λ=0.5, its fine-tuning guarded",
+    BC_TRAINED: "ours λ=0.5 trained with the BC proxies",
     BEYOND_POSTERIOR: "convention posterior (beyond the paper)",
     BEYOND_GUARDED: "guarded convention posterior (beyond the paper)",
     LOW_Z: "ours λ=0.5, low-dim z",

@@ -153,6 +153,7 @@ LOW_Z = lam_label(PAPER_LAM, "lowz")  # ours with a low-dimensional z
 HEAD_PENALTY = f"{PAPER_METHOD}-hl0.01"  # ours with the head penalty head_l2 0.01 (not in the paper)
 PICKED = f"{PAPER_METHOD}-pick"  # ours, adapting from a picked head (not in the paper)
 HEAD_PENALTY_PICKED = f"{HEAD_PENALTY}-pick"
+BC_TRAINED = f"{PAPER_METHOD}-bc"  # ours trained with Overcooked's BC proxies, as PPO_BC is (not in the paper)
 GUARDED = f"{PAPER_METHOD}-guarded"  # ours, its fine-tuning guarded (not in the paper; Hanabi's plan)
 BEYOND_POSTERIOR = "beyond-posterior"  # ours' egos adapting by the convention posterior (not in the paper)
 BEYOND_GUARDED = "beyond-guarded"  # the same, its fine-tuning guarded (not in the paper)
@@ -160,6 +161,6 @@ SCRATCH = "scratch"  # adapting a fresh network (seeded as ours)
 PPO_BC = "ppo_bc"  # BaselineAgg trained with Overcooked's BC proxies: Carroll et al.'s PPO_BC, their human-aware agent
 BASELINES: tuple[str, ...] = ("agg", "no_task_logits", "maml")  # the paper's baselines, by method name
 # Variants beyond the paper's: the reports list them apart from the paper's claims.
-EXTENSIONS: tuple[str, ...] = (HEAD_PENALTY, PICKED, HEAD_PENALTY_PICKED, GUARDED, BEYOND_POSTERIOR, BEYOND_GUARDED)
+EXTENSIONS: tuple[str, ...] = (HEAD_PENALTY, PICKED, HEAD_PENALTY_PICKED, GUARDED, BC_TRAINED, BEYOND_POSTERIOR, BEYOND_GUARDED)
 # Every label of the shipped plans, in the order figures and tables show them.
 LABELS: tuple[str, ...] = (LAM0, LAM03, PAPER_METHOD, *EXTENSIONS, LOW_Z, *BASELINES, PPO_BC, "oracle", SCRATCH)
