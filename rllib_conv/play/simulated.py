@@ -39,13 +39,22 @@ DONE_PHASES = ("finished", "ended")
 START_S = 60.0
 
 
+def _default_sigint() -> None:
+    """In the child before it runs the server: SIGINT back to its default, so Python turns it into KeyboardInterrupt."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 class ServerProcess:
     """`rllib-conv play ARGS` in a subprocess, the real command, to be stopped with Ctrl-C or SIGKILL."""
 
     def __init__(self, args: list[str]) -> None:
         cmd = [sys.executable, "-m", "rllib_conv.cli", "play", *args]
         env = {**os.environ, "OMP_NUM_THREADS": "1"}
-        self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
+        # Ctrl-C must reach it even when this process was started with SIGINT ignored (a shell's background job,
+        # `nohup ... &`): an ignored SIGINT is inherited, and the server would then stop with status 0, not 130.
+        self.proc = subprocess.Popen(
+            cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env, preexec_fn=_default_sigint
+        )
         self.lines: list[str] = []
         self.url = ""
         deadline = time.monotonic() + START_S

@@ -8,6 +8,7 @@ database: every acknowledged try is there, exactly once, with the arms shown.
 from __future__ import annotations
 
 import asyncio
+import signal
 import sqlite3
 import time
 from pathlib import Path
@@ -65,4 +66,14 @@ def test_many_participants_at_once_all_finish_with_nothing_lost_or_doubled(study
     key = next(iter(o.seen))
     o.seen[key] = (o.seen[key][0] % 4 + 1, o.seen[key][1])  # were a try shown with another arm than stored,
     assert audit(out / DB_FILE, outcomes).lost == 1  # the audit would say so
+    assert server.interrupt() == 130
+
+
+def test_ctrl_c_stops_the_server_even_when_the_caller_ignores_it(study_process, tmp_path: Path) -> None:
+    # A shell's background job (`nohup make test &`, as CI may run) starts with SIGINT ignored, which children inherit.
+    before = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        server = study_process([*ARGS, "--port", "0", "--out", str(tmp_path / "study")])
+    finally:
+        signal.signal(signal.SIGINT, before)
     assert server.interrupt() == 130
