@@ -58,11 +58,8 @@ LABEL_STYLES: dict[str, tuple[str, str | tuple]] = {
     HEAD_PENALTY: ("#44AA99", (0, (5, 1, 1, 1, 1, 1))),  # teal, dash-dot-dot (not in the paper)
     PICKED: ("#999933", (0, (8, 2))),  # olive, long dashes (not in the paper)
     HEAD_PENALTY_PICKED: ("#888888", (0, (8, 2, 1, 2))),  # grey, long dash-dot (not in the paper)
-    GUARDED: ("#AA4499", (0, (2, 2))),
-    BC_TRAINED: (
-        "#88CCEE",
-        (0, (5, 2, 1, 2)),
-    ),  # cyan, dash-dot: ours trained with the BC proxies (not in the paper)  # purple, short dashes: ours, its fine-tuning guarded (not in the paper)
+    GUARDED: ("#AA4499", (0, (2, 2))),  # purple, short dashes: ours, its fine-tuning guarded (not in the paper)
+    BC_TRAINED: ("#88CCEE", (0, (5, 2, 1, 2))),  # cyan, dash-dot: ours trained with the BC proxies (not in the paper)
     BEYOND_POSTERIOR: ("#661100", "-"),  # dark brown, solid: the adapter beyond the paper
     BEYOND_GUARDED: ("#CC6677", (0, (4, 2))),  # rose, dashes: the same adapter, its fine-tuning guarded
 }

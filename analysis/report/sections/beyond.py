@@ -149,13 +149,11 @@ def beyond_section(ctx: Context) -> str:
             found = _target(ctx, population, here, label)
             if found is not None:
                 targets.append([population_name(population), label_name(label), *found])
+    lines += ["", "### Targets", ""]
     if not targets:
         # Targets are declared before a run (this module's docstring); none is made up afterwards.
-        return "\n".join([*lines, "", "### Targets", "", "No target was declared for these populations."])
+        return "\n".join([*lines, "No target was declared for these populations."])
     lines += [
-        "",
-        "### Targets",
-        "",
         f"Supported: the whole 95% interval over seeds is on the target's side (for the uniform-prior target: above −{BAYES_MARGIN}, a reference that is Bayes-optimal only if every convention were equally likely and independent, so not an upper bound; for "
         "'no worse': above −the margin the plan declares, `no_worse_margin`); contradicted: wholly on the other side; not shown "
         "otherwise, and not shown (missing: ...) where a method the target names was not run.",
