@@ -8,6 +8,7 @@ import json
 import os
 import platform
 import statistics
+import subprocess
 import sys
 import tempfile
 import time
@@ -106,3 +107,19 @@ def benchmarks_only_folder() -> Path:
     folder = Path(tempfile.mkdtemp(prefix="benchmarks-only-"))
     (folder / "benchmarks").symlink_to(BENCHMARKS, target_is_directory=True)
     return folder
+
+
+def run_with_code(code: Path, script: str, args: Sequence[str], marker: str) -> str:
+    """Run `python -m benchmarks.<script> *args` in a fresh process whose rllib_conv is `code`'s; return its `marker` line's rest.
+
+    The benchmark scripts are this checkout's (`benchmarks_only_folder`), everything else
+    comes from `code` (a git worktree of an older commit, or this checkout): how one script
+    measures two versions of the code side by side.
+    """
+    env = {**os.environ, "PYTHONPATH": str(code), "OMP_NUM_THREADS": "1", "RAY_ADDRESS": ""}
+    command = [sys.executable, "-m", f"benchmarks.{script}", *args]
+    proc = subprocess.run(command, cwd=benchmarks_only_folder(), env=env, capture_output=True, text=True)
+    line = next((ln for ln in proc.stdout.splitlines() if ln.startswith(f"{marker} ")), None)
+    if proc.returncode != 0 or line is None:
+        raise RuntimeError(f"{script} {' '.join(args)} with {code} failed:\n{(proc.stdout + proc.stderr)[-4000:]}")
+    return line[len(marker) + 1 :]

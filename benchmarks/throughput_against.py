@@ -13,17 +13,15 @@ from __future__ import annotations
 
 import argparse
 import itertools
-import os
 import statistics
 import subprocess
-import sys
 import tempfile
 from pathlib import Path
 
 import pandas as pd
 import ray
 
-from benchmarks._common import alternating, benchmarks_only_folder, write_result
+from benchmarks._common import alternating, run_with_code, write_result
 from benchmarks.reproduce_walltime import REPO, worktree
 from benchmarks.train_throughput import ours, population_of, steps_per_second
 
@@ -40,23 +38,8 @@ def measure(game: str, method: str, seconds: float) -> float:
 
 def run_child(code: Path, game: str, method: str, seconds: float) -> float:
     """`measure` in a fresh process whose rllib_conv is `code`'s (and whose benchmark scripts are this checkout's)."""
-    env = {**os.environ, "PYTHONPATH": str(code), "OMP_NUM_THREADS": "1", "RAY_ADDRESS": ""}
-    command = [
-        sys.executable,
-        "-m",
-        "benchmarks.throughput_against",
-        "--child",
-        game,
-        "--methods",
-        method,
-        "--seconds",
-        str(seconds),
-    ]
-    proc = subprocess.run(command, cwd=benchmarks_only_folder(), env=env, capture_output=True, text=True)
-    line = next((ln for ln in proc.stdout.splitlines() if ln.startswith("STEPS ")), None)
-    if proc.returncode != 0 or line is None:
-        raise RuntimeError(f"measuring {game} ({method}) with {code} failed:\n{(proc.stdout + proc.stderr)[-4000:]}")
-    return float(line.split()[1])
+    args = ["--child", game, "--methods", method, "--seconds", str(seconds)]
+    return float(run_with_code(code, "throughput_against", args, "STEPS"))
 
 
 def main() -> None:

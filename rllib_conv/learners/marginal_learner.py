@@ -4,7 +4,8 @@ The paper's loss, per ego: PPO's loss on every head's own rows (`ppo_loss`), plu
 `lam * D` (`regulariser.marginal_distance`): D over the states of all the ego's heads' rows
 (PPO's bootstrap padding rows are dropped by `DropBootstrapRows` before minibatching), over
 all its heads i (one per training partner), with no gradient stopped. `lam = 0` leaves
-PPO's loss untouched (D is still logged, computed without gradients).
+PPO's loss untouched: each head then runs on its own rows only, and D is still logged,
+computed without gradients on each update's last minibatch.
 
 The ego trains packed: a `StackedEgoMultiRLModule` of K independent replicas (seeds) whose
 weights live in one `EgoStack`; the loss adds `lam * sum_r D_r`, and each D_r reaches only
@@ -69,6 +70,11 @@ class MarginalPPOLearner(FusedUpdateLearner):
         with torch.set_grad_enabled(self.head_l2 > 0 and torch.is_grad_enabled()):
             size = head_size(stacked.head_out, rows)
         return {MARGINAL_REG_KEY: reg, HEAD_L2_KEY: size}
+
+    @property
+    def loss_reads_all_heads(self) -> bool:
+        """D and H read every head on every row: needed in the loss only when weighted."""
+        return self.lam > 0 or self.head_l2 > 0
 
     def stack_loss(self, terms: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
         """lam * sum_r D_r and head_l2 * sum_r H_r, those with a weight (a replica's terms reach only its own weights)."""

@@ -6,9 +6,11 @@ import numpy as np
 import pytest
 import torch
 from ray.rllib.algorithms.ppo.torch.ppo_torch_learner import PPOTorchLearner
+from ray.rllib.policy.sample_batch import MultiAgentBatch, SampleBatch
 
 from rllib_conv.learners.marginal_learner import MARGINAL_REG_KEY
 from rllib_conv.learners.regulariser import marginal_distance
+from rllib_conv.modules.multi import TASK_ID, replica_id
 from rllib_conv.modules.packed.stacked_multi import STACK_ID
 from rllib_conv.training.algorithm import Replica
 from rllib_conv.training.evaluate import head_probs, task_probs
@@ -84,6 +86,29 @@ def test_batched_train_forward_matches_each_heads_own_forward() -> None:
         torch.testing.assert_close(
             learner.module[h].compute_values(batch[h], batched[h]["embeddings"]), learner.module[h].compute_values(batch[h])
         )
+
+
+@pytest.mark.parametrize("overrides", [{"lam": 0.0}, {"method": "no_task_logits"}])
+def test_own_heads_forward_gives_the_all_heads_forwards_own_logits_and_values(overrides: dict) -> None:
+    """Without a regulariser the learner runs each head on its own rows only: the same logits and values."""
+    learner = build_learner([Replica(bandit_setup(**overrides, seed=s)) for s in (0, 1)])
+    assert not learner.loss_reads_all_heads
+    _, obs, mask, valid, _ = learner.module.stack_batch(hand_batch(learner.module.head_ids(), rows=5, seed=2))
+    valid[1, 2, 3:] = False  # a replica head with fewer rows than the others
+    full = learner.module.forward_stacked(obs, mask, valid)
+    own = learner.module.forward_stacked(obs, mask, valid, all_heads=False)
+    assert own.all_logits is None and own.head_out is None and full.all_logits is not None
+    torch.testing.assert_close(own.logits, full.logits)
+    torch.testing.assert_close(own.values, full.values)
+
+
+def test_lam_zero_still_logs_the_regulariser_from_the_last_minibatch() -> None:
+    learner = build_learner(bandit_setup(lam=0.0))
+    batch = hand_batch(learner.module.head_ids(), rows=8, seed=4)
+    mab = MultiAgentBatch({mid: SampleBatch(cols) for mid, cols in batch.items()}, env_steps=8 * len(batch))
+    metrics = learner.update(batch=mab, num_epochs=2, minibatch_size=4, shuffle_batch_per_epoch=True, timesteps={})
+    reg = metrics[replica_id(TASK_ID, 0)][MARGINAL_REG_KEY]
+    assert 0.0 < reg.peek() <= 2.0  # D of random nets: positive, at most 2
 
 
 @pytest.mark.parametrize(

@@ -101,6 +101,15 @@ class FusedUpdateLearner(PPOTorchLearner):
         """The loss terms (scalars, by name) made of `stack_terms`' output; none here."""
         return {}
 
+    @property
+    def loss_reads_all_heads(self) -> bool:
+        """Whether `stack_loss` needs every head on every row (`StackedOutput.all_logits`); none here.
+
+        When it does not, each minibatch runs every head on its own rows only, and
+        `stack_terms` are logged from the update's last minibatch alone.
+        """
+        return False
+
     def _log_stack_terms(self, terms: dict[str, torch.Tensor]) -> None:
         """Log each term per replica under `task#r` and its mean over replicas under ALL_MODULES."""
         for key, per_replica in terms.items():
@@ -253,17 +262,25 @@ class FusedUpdateLearner(PPOTorchLearner):
         hh_ = torch.arange(h).view(1, h, 1)
         settings = self._ppo_settings(next(iter(data)))  # one config for every head of the stack
         logged: list[dict[str, torch.Tensor]] = []
-        for rows in plan:
+        steps = list(plan)
+        for i, rows in enumerate(steps):
             b = len(next(iter(rows.values())))
             idx = torch.zeros((k, h, b), dtype=torch.long)
             for mid, r in rows.items():
                 idx[cell[mid]] = r
             valid = present.unsqueeze(-1).expand(k, h, b)
-            stacked = self.module.forward_stacked(obs[kk, hh_, idx], None if mask is None else mask[kk, hh_, idx], valid)
+            mb_obs, mb_mask = obs[kk, hh_, idx], None if mask is None else mask[kk, hh_, idx]
+            stacked = self.module.forward_stacked(mb_obs, mb_mask, valid, all_heads=self.loss_reads_all_heads)
             mb = {c: t[kk, hh_, idx] for c, t in columns.items()}
             terms = ppo_loss(stacked.logits, stacked.values, mb[Columns.ACTIONS], mb, valid=valid, **settings)
-            extra = self.stack_terms(stacked)
-            logged.append({key: t.detach() for key, t in extra.items()})
+            if self.loss_reads_all_heads:
+                extra = self.stack_terms(stacked)
+                logged.append({key: t.detach() for key, t in extra.items()})
+            else:
+                extra = {}
+                if i == len(steps) - 1:  # terms outside the loss are only logged: from the last minibatch, no gradient
+                    with torch.no_grad():
+                        logged.append(self.stack_terms(self.module.forward_stacked(mb_obs, mb_mask, valid)))
             self._backward_and_step(terms.total.sum() + sum(self.stack_loss(extra).values()))
         self._log_terms(
             {

@@ -81,14 +81,14 @@ class StackedOutput:
 
     `logits` [K, H, B, A]: each head's policy logits on its own rows; `values` [K, H, B];
     `all_logits` [K, H, N, A] and `head_out` (before the task logits) [K, H, N, A]: every head
-    on every row of its replica (N = H x B); `task_logits` [K, N, A]; `valid` [K, H, B]: the
-    rows that exist (padding is False).
+    on every row of its replica (N = H x B), None when the forward ran each head on its own
+    rows only; `task_logits` [K, N, A]; `valid` [K, H, B]: the rows that exist (padding is False).
     """
 
     logits: torch.Tensor
     values: torch.Tensor
-    all_logits: torch.Tensor
-    head_out: torch.Tensor
+    all_logits: torch.Tensor | None
+    head_out: torch.Tensor | None
     task_logits: torch.Tensor
     valid: torch.Tensor
 
@@ -170,18 +170,29 @@ class StackedEgoMultiRLModule(SharedWiringMultiRLModule):
 
     # --- training ---------------------------------------------------------------------------------
 
-    def forward_stacked(self, obs: torch.Tensor, mask: torch.Tensor | None, valid: torch.Tensor) -> StackedOutput:
-        """The training forward on rows already stacked per (replica, head): obs [K, H, B, d], mask [K, H, B, A], valid [K, H, B]."""
+    def forward_stacked(
+        self, obs: torch.Tensor, mask: torch.Tensor | None, valid: torch.Tensor, all_heads: bool = True
+    ) -> StackedOutput:
+        """The training forward on rows already stacked per (replica, head): obs [K, H, B, d], mask [K, H, B, A], valid [K, H, B].
+
+        `all_heads=False` runs each head on its own rows only (H times less head work):
+        `all_logits` and `head_out` are then None, for losses that read neither (no
+        regulariser, no head penalty). The own logits and values are the same either way.
+        """
         stack = self.stack
         k, h, b = obs.shape[:3]
         x = obs.reshape(k, h * b, -1)
         m = None if mask is None else mask.reshape(k, h * b, -1)
         task = stack.task_forward(x, m)
+        z_own = task.z.reshape(k * h, b, -1)
+        values = stack.head_values(z_own).reshape(k, h, b) + task.value.reshape(k, h, b)
+        if not all_heads:
+            head_own = stack._heads("head_pi", HEAD_POLICY, z_own).reshape(k, h, b, -1)
+            own = stack.policy_logits(head_own, task.logits.reshape(k, h, b, -1), mask)
+            return StackedOutput(own, values, None, None, task.logits, valid)
         head_out = stack.head_outputs(task.z)  # [K, H, N, A]
         all_logits = stack.policy_logits(head_out, task.logits.unsqueeze(1), None if m is None else m.unsqueeze(1))
         own = all_logits.reshape(k, h, h, b, -1).diagonal(dim1=1, dim2=2).permute(0, 3, 1, 2)  # [K, H, B, A]
-        z_own = task.z.reshape(k * h, b, -1)
-        values = stack.head_values(z_own).reshape(k, h, b) + task.value.reshape(k, h, b)
         return StackedOutput(own, values, all_logits, head_out, task.logits, valid)
 
     def stack_batch(
