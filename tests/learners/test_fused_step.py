@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import copy
+
 import pytest
 import torch
 
@@ -75,3 +77,35 @@ def test_one_norm_over_all_tensors_equals_rllibs_norm_of_tensor_norms() -> None:
     torch.testing.assert_close(clip_segments(fast, 1, 0.5), clip_segments_per_tensor(slow, 1, 0.5))
     for f, s in zip(fast, slow):
         torch.testing.assert_close(f, s)
+
+
+def test_a_restored_optimizer_state_is_the_one_the_next_step_uses() -> None:
+    """A checkpoint's Adam state loaded after steps were taken (its tensors replace the flat buffers' views) drives the next step."""
+    shapes = [(2, 3, 4), (2, 3)]
+    start = [torch.randn(s, generator=torch.Generator().manual_seed(i)) for i, s in enumerate(shapes)]
+    ours = [torch.nn.Parameter(t.clone()) for t in start]
+    opt = torch.optim.Adam(ours, lr=0.01)
+    fused = FusedAdamStep([opt], 1.0, segments=[1])
+    ref = [torch.nn.Parameter(t.clone()) for t in start]
+    ref_opt = torch.optim.Adam(ref, lr=0.01)
+    for step in range(3):
+        grads = _grads(shapes, step)
+        if step == 1:  # ours takes a stray step, then gets the reference's state back as a restored checkpoint would
+            for p in ours:
+                p.grad = torch.ones_like(p)
+            fused.step()
+            opt.load_state_dict(copy.deepcopy(ref_opt.state_dict()))
+            with torch.no_grad():
+                for p, r in zip(ours, ref):
+                    p.copy_(r)
+        for p, r, g in zip(ours, ref, grads):
+            p.grad, r.grad = g.clone(), g.clone()
+        fused.step()
+        for r in range(2):  # the reference clips each replica alone
+            norm = torch.linalg.vector_norm(torch.cat([p.grad[r].flatten() for p in ref]))
+            for p in ref:
+                p.grad[r].mul_(min(1.0, 1.0 / max(float(norm) + 1e-6, 1.0)))
+        ref_opt.step()
+        for p, r in zip(ours, ref):
+            torch.testing.assert_close(p.detach(), r.detach(), rtol=1e-6, atol=1e-7, msg=f"step {step}")
+    assert int(opt.state[ours[0]]["step"]) == int(ref_opt.state[ref[0]]["step"]) == 3

@@ -3,15 +3,16 @@
 RLlib's learner clips each optimizer's gradients by their global norm (`grad_clip_by=
 "global_norm"`), zeroes non-finite gradients, then calls `step()` on every optimizer in
 turn, paying Python overhead per optimizer and per parameter. `FusedAdamStep` does the same
-arithmetic with a few tensor ops: one clip coefficient per optimizer, then one functional
-`adam` call per group of optimizers sharing their hyperparameters, on torch's fused kernel
-(one pass over each tensor; the foreach path makes a dozen: the Adam call alone takes ~2.7x
-as long on the bandit's 30-unit nets, a whole learner update 1.03-1.2x,
-`benchmarks/adam_kernel.py`). Fused Adam is Adam's arithmetic
-with other rounding: weights agree with RLlib's loop to float tolerance, not bit for bit
-(`tests/learners/test_fused_step.py`, `tests/learners/test_fused_update.py`). The optimizers' `state`
-(step counts, moments) is theirs, initialised exactly as `torch.optim.Adam` does, so
-checkpoints and RLlib's own loop see ordinary optimizers.
+arithmetic with a few tensor ops whatever the number of layers: each optimizer's parameters
+and Adam moments live in flat buffers (the parameters' data are views into them), so a step
+is one concatenation of the gradients, one norm and one scale per optimizer, then one
+functional `adam` call per set of hyperparameters on torch's fused kernel (one pass over each
+tensor; the foreach path makes a dozen: `benchmarks/adam_kernel.py`). Fused Adam is Adam's
+arithmetic with other rounding: weights agree with RLlib's loop to float tolerance, not bit
+for bit (`tests/learners/test_fused_step.py`, `tests/learners/test_fused_update.py`). The
+optimizers' `state` (step counts, moments) reads as torch's Adam keeps it (views into the
+flat buffers), so checkpoints and RLlib's own loop see ordinary optimizers; a state replaced
+by a restored checkpoint is copied back into the buffers before the next step.
 
 Segments: an optimizer over stacked parameters (`EgoStack`: tensors [K, ...] or
 [K, H, ...]) stands for K (or K x H) optimizers of independent replicas; with
@@ -83,86 +84,131 @@ def clip_segments_per_tensor(grads: list[torch.Tensor], segment_dims: int, grad_
     return norms if grad_clip else None
 
 
+class _FlatGroup:
+    """One optimizer's parameters, Adam moments and step count kept in flat buffers (see the module docstring).
+
+    Each parameter's data becomes a view into `data` ([segment shape..., n]: every
+    parameter's slice side by side along the last dim), and its Adam state (`exp_avg`,
+    `exp_avg_sq`, `step`) views into `exp_avg`, `exp_avg_sq` and `steps`, so the optimizer's
+    `state` still reads as torch's Adam keeps it (checkpoints, RLlib's own loop).
+    """
+
+    def __init__(self, optimizer: Adam, segment_dims: int) -> None:
+        self.optimizer, self.segment_dims = optimizer, segment_dims
+        self.params: list[torch.Tensor] = list(optimizer.param_groups[0]["params"])
+        self.widths = [p[(0,) * segment_dims].numel() for p in self.params]
+        self.data = self._flat([p.detach() for p in self.params])
+        for p, view in zip(self.params, self._views(self.data)):
+            p.data = view  # same values, now stored in the flat buffer the fused step updates in one call
+        self._bind_state()
+
+    def _flat(self, tensors: list[torch.Tensor]) -> torch.Tensor:
+        """`tensors` (shaped as the parameters) side by side in one [segment shape..., n] tensor."""
+        d = self.segment_dims
+        return torch.cat([t.reshape(*t.shape[:d], -1) if d else t.reshape(-1) for t in tensors], dim=-1)
+
+    def _views(self, flat: torch.Tensor) -> list[torch.Tensor]:
+        """Each parameter's slice of `flat`, shaped as the parameter."""
+        out, start = [], 0
+        for p, width in zip(self.params, self.widths):
+            out.append(flat[..., start : start + width].view(p.shape))
+            start += width
+        return out
+
+    def _bind_state(self) -> None:
+        """Flat Adam state from the optimizer's (restored from a checkpoint, or zeros as `Adam._init_group` makes them), then bound back to it as views."""
+        states = [self.optimizer.state[p] for p in self.params]
+        started = all(len(st) > 0 for st in states)
+        self.exp_avg = self._flat([st["exp_avg"] for st in states]) if started else torch.zeros_like(self.data)
+        self.exp_avg_sq = self._flat([st["exp_avg_sq"] for st in states]) if started else torch.zeros_like(self.data)
+        first = float(states[0]["step"]) if started else 0.0
+        self.steps = torch.full((len(self.params),), first, dtype=_get_scalar_dtype())
+        for i, (st, m, v) in enumerate(zip(states, self._views(self.exp_avg), self._views(self.exp_avg_sq))):
+            st.update(step=self.steps[i], exp_avg=m, exp_avg_sq=v)
+        self._bound = states[0]["exp_avg"]
+
+    def flat_grad(self) -> torch.Tensor:
+        """Every parameter's gradient in the flat layout (zeros for a parameter this loss did not reach)."""
+        return self._flat([p.grad if p.grad is not None else torch.zeros_like(p) for p in self.params])
+
+    def state_for_step(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """(exp_avg, exp_avg_sq, step) to step with; rebound first if the optimizer's state was replaced (a restored checkpoint)."""
+        if self.optimizer.state[self.params[0]].get("exp_avg") is not self._bound:
+            self._bind_state()
+        return self.exp_avg, self.exp_avg_sq, self.steps[0]
+
+    def sync_steps(self) -> None:
+        """Every parameter's step count equal to the one the fused call advanced."""
+        self.steps[1:] = self.steps[0]
+
+
 class FusedAdamStep:
-    """Clip and step the Adam optimizers `optimizers` (each over its own parameters) in one go."""
+    """Clip and step the Adam optimizers `optimizers` (each over its own parameters) in one go.
+
+    Each optimizer's parameters and moments move into flat buffers on construction
+    (`_FlatGroup`): a step is then one norm and one scale per optimizer and one fused Adam call
+    per set of hyperparameters, whatever the number of layers. A parameter that a loss does
+    not reach counts as a zero gradient (torch's Adam would skip it): the same weights where,
+    as here, such a parameter is never reached (its moments stay 0) and there is no weight decay.
+    """
 
     def __init__(self, optimizers: list[Adam], grad_clip: float | None, segments: list[int] | None = None) -> None:
         for opt in optimizers:
             if not isinstance(opt, Adam) or len(opt.param_groups) != 1:
                 raise ValueError(f"FusedAdamStep needs single-group torch Adam optimizers, got {type(opt).__name__}")
             group = opt.param_groups[0]
-            if group["amsgrad"] or group["fused"] or group["capturable"] or group["differentiable"]:
-                raise ValueError("FusedAdamStep supports plain Adam only (no amsgrad, fused, capturable or differentiable)")
+            if group["amsgrad"] or group["fused"] or group["capturable"] or group["differentiable"] or group["weight_decay"]:
+                raise ValueError(
+                    "FusedAdamStep supports plain Adam only (no amsgrad, fused, capturable, differentiable or weight decay)"
+                )
         self.optimizers = optimizers
         self.grad_clip = grad_clip
         self.segments = list(segments) if segments is not None else [0] * len(optimizers)
-        self.params = [p for opt in optimizers for p in opt.param_groups[0]["params"]]
-        # Which optimizer each parameter belongs to.
-        self.owner = [i for i, opt in enumerate(optimizers) for _ in opt.param_groups[0]["params"]]
+        self.groups = [_FlatGroup(opt, d) for opt, d in zip(optimizers, self.segments)]
+        self.params = [p for g in self.groups for p in g.params]
 
     def zero_grad(self) -> None:
         """Drop every gradient (as `zero_grad(set_to_none=True)`)."""
         for p in self.params:
             p.grad = None
 
-    def _state(self, i: int) -> dict:
-        """Adam's state of parameter `i`, created as `Adam._init_group` creates it on the parameter's first step.
-
-        Looked up at every step: restoring a checkpoint replaces the state tensors.
-        """
-        p = self.params[i]
-        state = self.optimizers[self.owner[i]].state[p]
-        if len(state) == 0:
-            state["step"] = torch.tensor(0.0, dtype=_get_scalar_dtype(), device="cpu")
-            state["exp_avg"] = torch.zeros_like(p, memory_format=torch.preserve_format)
-            state["exp_avg_sq"] = torch.zeros_like(p, memory_format=torch.preserve_format)
-        return state
-
-    def _groups(self) -> dict[tuple, list[int]]:
-        """Parameter indices by Adam hyperparameters (lr, betas, eps, weight decay, maximize)."""
-        out: dict[tuple, list[int]] = defaultdict(list)
-        i = 0
-        for opt in self.optimizers:
-            g = opt.param_groups[0]
-            key = (g["lr"], g["betas"], g["eps"], g["weight_decay"], g["maximize"], g["decoupled_weight_decay"])
-            for _ in g["params"]:
-                out[key].append(i)
-                i += 1
-        return out
+    def _clipped(self, group: _FlatGroup) -> tuple[torch.Tensor, torch.Tensor | None]:
+        """The group's flat gradient clipped by RLlib's rule per segment, and the norms before clipping (None without clipping)."""
+        grad = group.flat_grad()
+        norms = torch.linalg.vector_norm(grad, dim=-1)
+        if not bool(torch.isfinite(norms).all()):  # RLlib's per-tensor rules, on views of the flat gradient
+            return grad, clip_segments_per_tensor(group._views(grad), group.segment_dims, self.grad_clip)
+        if self.grad_clip:
+            grad.mul_(_coefficient(norms, self.grad_clip).unsqueeze(-1))
+        return grad, norms if self.grad_clip else None
 
     @torch.no_grad()
     def step(self) -> list[torch.Tensor | None]:
-        """Clip, then step; returns each optimizer's gradient norms before clipping (None without clipping).
-
-        Parameters without a gradient (not reached by this loss) are skipped, as
-        `torch.optim.Adam` skips them: their moments and step counts stay as they are.
-        """
-        norms = []
-        for opt, segment_dims in zip(self.optimizers, self.segments):
-            grads = [p.grad for p in opt.param_groups[0]["params"] if p.grad is not None]
-            norms.append(clip_segments(grads, segment_dims, self.grad_clip))
-        live = [i for i, p in enumerate(self.params) if p.grad is not None]
-        position = {i: j for j, i in enumerate(live)}
-        states = [self._state(i) for i in live]
-        for (lr, betas, eps, weight_decay, maximize, decoupled), idx in self._groups().items():
-            idx = [position[i] for i in idx if i in position]
-            if not idx:
-                continue
+        """Clip, then step; returns each optimizer's gradient norms before clipping (None without clipping)."""
+        clipped = [self._clipped(g) for g in self.groups]
+        by_hyper: dict[tuple, list[int]] = defaultdict(list)
+        for i, opt in enumerate(self.optimizers):
+            g = opt.param_groups[0]
+            by_hyper[(g["lr"], g["betas"], g["eps"], g["maximize"], g["decoupled_weight_decay"])].append(i)
+        for (lr, betas, eps, maximize, decoupled), idx in by_hyper.items():
+            states = [self.groups[i].state_for_step() for i in idx]
             adam(
-                [self.params[live[j]] for j in idx],
-                [self.params[live[j]].grad for j in idx],
-                [states[j]["exp_avg"] for j in idx],
-                [states[j]["exp_avg_sq"] for j in idx],
+                [self.groups[i].data for i in idx],
+                [clipped[i][0] for i in idx],
+                [s[0] for s in states],
+                [s[1] for s in states],
                 [],
-                [states[j]["step"] for j in idx],
+                [s[2] for s in states],
                 fused=True,
                 amsgrad=False,
                 beta1=betas[0],
                 beta2=betas[1],
                 lr=lr,
-                weight_decay=weight_decay,
+                weight_decay=0.0,
                 eps=eps,
                 maximize=maximize,
                 decoupled_weight_decay=decoupled,
             )
-        return norms
+            for i in idx:
+                self.groups[i].sync_steps()
+        return [norms for _, norms in clipped]
