@@ -76,6 +76,44 @@ class PermutationPartner(Partner):
 
 
 @register_kind
+class NoisyPermutationPartner(Partner):
+    """A `PermutationPartner` that slips: on its first move it places blue on a uniformly drawn cell with probability `noise`.
+
+    It says what it draws from (`action_probs`), so blocks' exact return and P1's
+    best-response bound score it without sampling; the bound is below 20 once `noise > 0`.
+    """
+
+    kind = "blocks_noisy_permutation"
+
+    def __init__(self, name: str, perm: list[int], noise: float) -> None:
+        super().__init__(name)
+        self.perm = _check_permutation(perm)
+        if not 0.0 <= float(noise) <= 1.0:
+            raise ValueError(f"noise must be a probability from 0 to 1, got {noise!r}")
+        self.noise = float(noise)
+        self._exact = PermutationPartner(name, list(self.perm))
+        self._rng = np.random.default_rng()
+
+    def action_probs(self, observations: np.ndarray, action_masks: np.ndarray) -> np.ndarray:
+        exact = self._exact.action_probs(observations, action_masks)
+        seen = decode_observations(observations)
+        slips = (seen["move"] == 1) & (seen["grid"] == RED).any(axis=-1)  # where it places blue at all
+        exact[slips] *= 1.0 - self.noise
+        exact[slips, :NUM_CELLS] += self.noise / NUM_CELLS
+        return exact
+
+    def act(self, observation: np.ndarray, action_mask: np.ndarray) -> int:
+        p = self.action_probs(np.asarray(observation)[None], np.asarray(action_mask)[None])[0]
+        return int(self._rng.choice(len(p), p=p))
+
+    def seed(self, seed: int | None) -> None:
+        self._rng = np.random.default_rng(seed)
+
+    def params(self) -> dict[str, Any]:
+        return {"perm": list(self.perm), "noise": self.noise}
+
+
+@register_kind
 class BlocksLeader(Partner):
     """P1 (red) that knows the partner's `perm`: the best response to `PermutationPartner(perm)`.
 
