@@ -9,7 +9,7 @@ import numpy as np
 
 from rllib_conv.envs.bandit import PAPER_ARMS, PAPER_CONTEXTS, good_arms, paper_prizes
 from rllib_conv.envs.spaces import check_choice
-from rllib_conv.partners.base import Partner
+from rllib_conv.partners.base import Partner, SampledPartner
 from rllib_conv.partners.kinds import register_kind
 from rllib_conv.partners.population import Population, from_partners, register_builtin, task_suffix
 
@@ -52,7 +52,7 @@ class BanditConventionPartner(Partner):
 
 
 @register_kind
-class BanditMixedPartner(Partner):
+class BanditMixedPartner(SampledPartner):
     """Pulls arm a in context c with probability `probs[c][a]`: a convention held with noise, or split between arms.
 
     It says what it draws from (`action_probs`), so the bandit's exact return and its
@@ -70,7 +70,6 @@ class BanditMixedPartner(Partner):
             raise ValueError(f"each row of probs must sum to 1, got sums {table.sum(axis=1).round(6).tolist()}")
         self.probs = (table / table.sum(axis=1, keepdims=True)).tolist()
         self._table = np.asarray(self.probs)
-        self._rng = np.random.default_rng()
 
     def action_probs(self, observations: np.ndarray, action_masks: np.ndarray) -> np.ndarray:
         contexts = np.asarray(observations).argmax(axis=1)
@@ -86,13 +85,6 @@ class BanditMixedPartner(Partner):
         if (probs * (masks == 0)).any():
             raise ValueError(f"{self.name}: it pulls arms that are not legal in this game (mask {masks[0].tolist()})")
         return probs
-
-    def act(self, observation: np.ndarray, action_mask: np.ndarray) -> int:
-        p = self.action_probs(np.asarray(observation)[None], np.asarray(action_mask)[None])[0]
-        return int(self._rng.choice(len(p), p=p))
-
-    def seed(self, seed: int | None) -> None:
-        self._rng = np.random.default_rng(seed)
 
     def params(self) -> dict[str, Any]:
         return {"probs": [list(row) for row in self.probs]}

@@ -26,7 +26,7 @@ from rllib_conv.envs.blocks import (
     decode_observation,
     decode_observations,
 )
-from rllib_conv.partners.base import Partner
+from rllib_conv.partners.base import Partner, SampledPartner
 from rllib_conv.partners.kinds import register_kind
 from rllib_conv.partners.population import Population, from_partners, register_builtin, task_suffix
 
@@ -76,7 +76,7 @@ class PermutationPartner(Partner):
 
 
 @register_kind
-class NoisyPermutationPartner(Partner):
+class NoisyPermutationPartner(SampledPartner):
     """A `PermutationPartner` that slips: on its first move it places blue on a uniformly drawn cell with probability `noise`.
 
     It says what it draws from (`action_probs`), so blocks' exact return and P1's
@@ -92,7 +92,6 @@ class NoisyPermutationPartner(Partner):
             raise ValueError(f"noise must be a probability from 0 to 1, got {noise!r}")
         self.noise = float(noise)
         self._exact = PermutationPartner(name, list(self.perm))
-        self._rng = np.random.default_rng()
 
     def action_probs(self, observations: np.ndarray, action_masks: np.ndarray) -> np.ndarray:
         exact = self._exact.action_probs(observations, action_masks)
@@ -101,13 +100,6 @@ class NoisyPermutationPartner(Partner):
         exact[slips] *= 1.0 - self.noise
         exact[slips, :NUM_CELLS] += self.noise / NUM_CELLS
         return exact
-
-    def act(self, observation: np.ndarray, action_mask: np.ndarray) -> int:
-        p = self.action_probs(np.asarray(observation)[None], np.asarray(action_mask)[None])[0]
-        return int(self._rng.choice(len(p), p=p))
-
-    def seed(self, seed: int | None) -> None:
-        self._rng = np.random.default_rng(seed)
 
     def params(self) -> dict[str, Any]:
         return {"perm": list(self.perm), "noise": self.noise}
