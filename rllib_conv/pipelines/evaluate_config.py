@@ -17,7 +17,7 @@ from pydantic import Field, PositiveInt
 
 from rllib_conv import envs
 from rllib_conv.common.config_files import Strict
-from rllib_conv.common.run_folders import read_trial_config, trial_folders
+from rllib_conv.common.run_folders import trial_folders
 from rllib_conv.partners.evaluation_sets import EvaluationSet, find_set
 from rllib_conv.partners.population import Population
 from rllib_conv.pipelines.naming import run_label
@@ -91,7 +91,7 @@ def check(cfg: EvaluateConfig) -> Evaluation:
             raise ValueError(f"RUNS {run!r} does not exist")
         for trial in trial_folders(run):
             exp = check_trial(trial)
-            egos.append(TrainedEgo(run_label(run), trial, int(read_trial_config(trial).get("seed", 0))))
+            egos.append(TrainedEgo(run_label(run), trial, exp.seed))
             games.append(trained_game(exp))
     env, env_config, partner_agent = games[0]
     for ego, (other, other_config, _) in zip(egos, games):
