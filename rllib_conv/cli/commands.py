@@ -437,7 +437,7 @@ def evaluate(args: argparse.Namespace) -> None:
         if args.name
         else naming.evaluate_name(cfg.runs, eval_set=cfg.eval_set, module=cfg.module, episodes=cfg.episodes, seed=cfg.seed)
     )
-    folder = writable(args.out, "--out") / name
+    folder = writable(Path(args.out) / name, "--out")  # OUT/NAME itself: a file there is refused before any work
     from rllib_conv.pipelines.evaluate import FIGURE_FILE, SCORES_FILE, SUMMARY_FILE, write_evaluation
 
     table, summary = write_evaluation(cfg, found, folder, ["rllib-conv", *args.argv])
