@@ -16,6 +16,7 @@ import pytest
 import yaml
 
 from rllib_conv.cli import main
+from rllib_conv.common.resources import evaluation_set_file
 from rllib_conv.training.experiment import ExperimentConfig
 from tests.helpers import digest
 
@@ -44,6 +45,7 @@ def inputs(tmp_path: Path, monkeypatch) -> Path:
     return tmp_path
 
 
+BLOCKS_SET = str(evaluation_set_file("blocks_heldout.yaml"))
 CASES = [
     # command line itself
     (["nocommand"], "invalid choice"),
@@ -103,6 +105,17 @@ CASES = [
     (["pair", "bandit_convention:{colour: 1}", "bandit-s1-hand:hand-train-0"], "unexpected keyword argument 'colour'"),
     (["pair", "bandit-s1-hand:hand-train-0", "bandit-s2-hand:hand-train-0"], "different bandit settings"),
     (["pair", "bandit_convention:{arms: [0]}", "bandit_convention:{arms: [0]}"], "no seat names a game"),
+    # evaluation sets (the trial's ego plays the bandit with 1 symmetric context)
+    (["evaluate", "missing"], "RUNS 'missing' does not exist"),
+    (["evaluate", "trial_badyaml"], "config.yaml' is not valid YAML"),
+    (["evaluate", "trial_nockpt"], "has no checkpoint"),
+    (["evaluate", "trial", "--eval-set", "test"], "--eval-set 'test': 'test' is neither heldout nor validation"),
+    (["evaluate", "trial", "--eval-set", "bad.yaml"], "--eval-set 'bad.yaml': evaluation set 'bad.yaml' is not valid YAML"),
+    (["evaluate", "trial", "--eval-set", "exp.yaml"], "evaluation set 'exp.yaml': role: Field required"),
+    (["evaluate", "trial"], "--eval-set 'heldout' is for bandit {'symmetric': 2}, but the ego in 'trial' was trained on bandit"),
+    (["evaluate", "trial", "--eval-set", BLOCKS_SET], "is for blocks {'new_task': False}, but the ego in 'trial'"),
+    (["evaluate", "trial", "--confidence", "1.5"], "--confidence: Input should be less than 1"),
+    (["evaluate", "trial", "--episodes", "0"], "argument --episodes"),
     # reproductions and reports
     (["reproduce", "bandit", "--seeds", "0"], "argument --seeds"),
     (["reproduce", "bandit", "--train-steps", "-5"], "argument --train-steps"),
@@ -157,6 +170,8 @@ LIGHT_CASES = [
     ["adapt", "trial", "--set", "steps=0"],
     ["zeroshot", "trial_nockpt"],
     ["marginals", "missing"],
+    ["evaluate", "trial"],
+    ["evaluate", "trial", "--eval-set", "test"],
     ["pair", "bandit-s1-hand", "x:y"],
     ["play", "--port", "70000"],
     ["report", "notrepro"],

@@ -32,7 +32,7 @@ COMMANDS = commands(build_parser())
 def test_every_command_is_reached() -> None:
     names = {" ".join(words) for words, _ in COMMANDS}
     expected = {"demo", "train", "sweep", "envs", "partners list", "partners show", "partners train", "adapt", "zeroshot"}
-    expected |= {"marginals", "pair", "reproduce", "play", "report", "plot", "crossplay"}
+    expected |= {"marginals", "pair", "reproduce", "play", "report", "plot", "crossplay", "evaluate"}
     assert expected <= names
 
 

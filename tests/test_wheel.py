@@ -3,7 +3,7 @@
 Builds a wheel of this checkout, installs it (without dependencies) into a fresh virtual
 environment outside the repository whose other packages come from the test environment,
 and runs the installed package from an unrelated folder: `rllib-conv partners list`, the
-demo's config load, a plan load and the user-study table load. Nothing may come from the
+demo's config load, a plan load, the user-study table load and a shipped evaluation set. Nothing may come from the
 checkout itself.
 """
 
@@ -21,7 +21,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 CHECKS = """
 import rllib_conv, sys
-from rllib_conv.common.resources import config_file, user_study_csv
+from rllib_conv.common.resources import config_file, evaluation_sets, user_study_csv
 from rllib_conv.common.user_study_table import load_user_study
 from rllib_conv.pipelines.demo import DEMO_CONFIG
 from rllib_conv.pipelines.plans import plan_for
@@ -32,6 +32,8 @@ print("demo population", config.raw["population"])
 print("bandit plan populations", len(plan_for("bandit").populations))
 table = load_user_study()
 print("user study rows", len(table), "from", user_study_csv())
+from rllib_conv.partners.evaluation_sets import shipped_set
+print("evaluation sets", len(evaluation_sets()), "blocks held-out", len(shipped_set("blocks", "heldout").resolve().partners))
 """
 
 
@@ -69,3 +71,4 @@ def test_configs_plans_and_the_user_study_table_load_from_the_wheel(installed: P
     assert "bandit plan populations 4" in out.stdout
     # 23 pairs x 2 tasks x 3 contexts x 2 tries (1 and 5) in the paper's table.
     assert "user study rows 276" in out.stdout and str(ROOT) not in out.stdout
+    assert "evaluation sets 4 blocks held-out 6" in out.stdout

@@ -37,6 +37,7 @@ from rllib_conv.cli.commands import ADAPT_OPTIONS, ZEROSHOT_OPTIONS, check_repor
 from rllib_conv.cli.human_data import human_data_parsers
 from rllib_conv.common.config_files import describe
 from rllib_conv.pipelines.adapt_config import AdaptConfig
+from rllib_conv.pipelines.evaluate_config import EvaluateConfig
 from rllib_conv.pipelines.pair_config import SEAT_SYNTAX, PairConfig
 from rllib_conv.pipelines.zeroshot_config import ZeroShotConfig
 
@@ -178,6 +179,30 @@ def _players(command: Callable[..., argparse.ArgumentParser]) -> None:
     p.add_argument("--out", default="crossplay", help="folder for the CSV and PNG (default: crossplay)")
 
 
+def _evaluate(command: Callable[..., argparse.ArgumentParser]) -> None:
+    d = lambda key: described(EvaluateConfig, key)  # noqa: E731
+    p = command(
+        "evaluate",
+        "score trained egos against a held-out or validation set, normalised by each partner's best-response bound",
+        commands.evaluate,
+        description="Score trained egos against an evaluation set (docs/protocol.md): per ego and partner the return "
+        "(exact on the bandit and blocks), the partner's best-response bound and return / bound; per agent (one RUNS "
+        "argument, its egos the seeds) the mean and IQM of those scores with bootstrap intervals over seeds. Writes "
+        "OUT/NAME/scores.csv, summary.json and summary.png.",
+    )
+    p.add_argument("runs", nargs="+", metavar="RUNS", help=d("runs"))
+    p.add_argument("--eval-set", default=EvaluateConfig.model_fields["eval_set"].default, metavar="SET", help=d("eval_set"))
+    p.add_argument("--module", help=d("module"))
+    p.add_argument("--episodes", type=positive_int, default=EvaluateConfig.model_fields["episodes"].default, help=d("episodes"))
+    p.add_argument("--seed", type=int, default=EvaluateConfig.model_fields["seed"].default, help=d("seed"))
+    p.add_argument(
+        "--resamples", type=positive_int, default=EvaluateConfig.model_fields["resamples"].default, help=d("resamples")
+    )
+    p.add_argument("--confidence", type=float, default=EvaluateConfig.model_fields["confidence"].default, help=d("confidence"))
+    p.add_argument("--name", help="name of the output folder (default: after RUNS, the set and the options that differ)")
+    p.add_argument("--out", default="evaluation", help="folder for the output folder (default: evaluation)")
+
+
 def _reproduce(command: Callable[..., argparse.ArgumentParser]) -> None:
     p = command("reproduce", "run every stage of the paper's experiments for a game (resumable)", commands.reproduce)
     p.add_argument(
@@ -265,6 +290,7 @@ def build_parser() -> argparse.ArgumentParser:
     _adapt(command)
     _zeroshot(command)
     _players(command)
+    _evaluate(command)
     _reproduce(command)
     human_data_parsers(command)
     _play(sub)
@@ -274,6 +300,7 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI; return the exit status (0 ok, 1 a failed run, 2 bad input, 130 interrupted)."""
     args = build_parser().parse_args(argv)
+    args.argv = list(sys.argv[1:] if argv is None else argv)  # the exact command, for outputs that record it
     try:
         with commands.quiet(args.verbose, keep_logs=args.command == "play"):
             args.func(args)

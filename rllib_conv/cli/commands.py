@@ -28,6 +28,8 @@ from rllib_conv.common import config_files
 from rllib_conv.common.run_folders import ADAPT_PREFIX, EVAL_FILE, SPEC_FILE, ZEROSHOT_PREFIX, trial_folders
 from rllib_conv.pipelines import naming
 from rllib_conv.pipelines.adapt_config import AdaptConfig
+from rllib_conv.pipelines.evaluate_config import EvaluateConfig
+from rllib_conv.pipelines.evaluate_config import check as check_evaluation
 from rllib_conv.pipelines.pair_config import PairConfig, is_run, population_seat, split_seat
 from rllib_conv.pipelines.zeroshot_config import ZeroShotConfig
 from rllib_conv.training.experiment import ExperimentConfig, check_trial
@@ -421,6 +423,30 @@ def pair(args: argparse.Namespace) -> None:
     table = write_pair(cfg, path)
     print(_table(table.T.reset_index().set_axis(["", "value"], axis=1), width=250))
     print(f"wrote {path}")
+
+
+def evaluate(args: argparse.Namespace) -> None:
+    """`rllib-conv evaluate RUNS`: egos against an evaluation set; scores.csv, summary.json, summary.png and a table."""
+    keys = ("runs", "eval_set", "module", "episodes", "seed", "resamples", "confidence")
+    raw = {k: getattr(args, k) for k in keys if getattr(args, k) is not None}
+    origins = {(k,): "RUNS" if k == "runs" else f"--{k.replace('_', '-')}" for k in keys}
+    cfg = config_files.check(raw, EvaluateConfig, origins)[0]
+    found = check_evaluation(cfg)
+    name = (
+        naming.slug(args.name)
+        if args.name
+        else naming.evaluate_name(cfg.runs, eval_set=cfg.eval_set, module=cfg.module, episodes=cfg.episodes, seed=cfg.seed)
+    )
+    folder = writable(Path(args.out) / name, "--out")  # OUT/NAME itself: a file there is refused before any work
+    from rllib_conv.pipelines.evaluate import FIGURE_FILE, SCORES_FILE, SUMMARY_FILE, write_evaluation
+
+    table, summary = write_evaluation(cfg, found, folder, ["rllib-conv", *args.argv])
+    by_partner = table.groupby(["agent", "partner"], sort=False)[["bound", "return", "normalised"]].mean().reset_index()
+    print(f"{found.eval_set.name} ({found.env} {found.env_config}): mean over seeds, by partner")
+    print(_table(by_partner))
+    print(f"\nnormalised score per agent, {cfg.confidence:.0%} bootstrap intervals over seeds:")
+    print(_table(summary))
+    print(f"wrote {folder / SCORES_FILE}, {folder / SUMMARY_FILE} and {folder / FIGURE_FILE}")
 
 
 def human_data(args: argparse.Namespace) -> None:

@@ -12,6 +12,7 @@ from importlib import resources
 from pathlib import Path
 
 CONFIGS_PACKAGE = "rllib_conv.tune_configs"
+EVAL_SETS_DIR = "eval_sets"  # inside the configs: each game's evaluation sets, `<game>_<role>.yaml`
 DATA_PACKAGE = "rllib_conv.data"
 USER_STUDY_CSV = "user_study.csv"
 
@@ -32,6 +33,20 @@ def available(package: str = CONFIGS_PACKAGE) -> list[str]:
 def config_file(name: str) -> Path:
     """A shipped experiment config or plan, e.g. `config_file("bandit_modular.yaml")`."""
     return _file(CONFIGS_PACKAGE, name)
+
+
+def evaluation_sets() -> list[str]:
+    """The names of the shipped evaluation-set manifests (`tune_configs/eval_sets/<game>_<role>.yaml`)."""
+    folder = resources.files(CONFIGS_PACKAGE).joinpath(EVAL_SETS_DIR)
+    return sorted(p.name for p in folder.iterdir() if p.is_file() and p.name.endswith(".yaml")) if folder.is_dir() else []
+
+
+def evaluation_set_file(name: str) -> Path:
+    """A shipped evaluation-set manifest by file name, e.g. `evaluation_set_file("bandit_heldout.yaml")`."""
+    path = Path(str(resources.files(CONFIGS_PACKAGE).joinpath(EVAL_SETS_DIR, name)))
+    if not path.is_file():
+        raise ValueError(f"{name!r} is not among the shipped evaluation sets (have: {', '.join(evaluation_sets())})")
+    return path
 
 
 def user_study_csv() -> Path:

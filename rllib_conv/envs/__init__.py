@@ -15,7 +15,7 @@ import importlib.util
 
 from rllib_conv.envs.bandit import CollaborativeBanditEnv
 from rllib_conv.envs.bandit.record import BANDIT
-from rllib_conv.envs.best_response import best_response
+from rllib_conv.envs.best_response import best_response, best_response_return
 from rllib_conv.envs.blocks import BlockPlacingEnv
 from rllib_conv.envs.blocks.best_response import BlocksBestResponse
 from rllib_conv.envs.blocks.record import BLOCKS
@@ -46,6 +46,7 @@ __all__ = [
     "register_game",
     "convention_key",
     "best_response",
+    "best_response_return",
     "CollaborativeBanditEnv",
     "BlockPlacingEnv",
     "BlocksBestResponse",

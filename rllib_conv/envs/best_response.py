@@ -7,6 +7,11 @@ are at hand). A `BestResponse` lists every observation the partner can act on
 (`situations`) and, given the partner's action probabilities in each, returns a `Plan`:
 the ego's best action per observation. The convention-posterior adapter plans against
 its posterior prediction of the new partner's moves (`adaptation.convention_posterior`).
+
+A game whose best response to a fixed partner has a known expected score declares it too
+(`GameRecord.best_response_return`: the bandit's `envs/bandit/best_response.py`, blocks'
+beside its planner); `best_response_return` asks for it, and `rllib-conv evaluate`
+normalises returns by it.
 """
 
 from __future__ import annotations
@@ -39,3 +44,9 @@ def best_response(env_name: str, env_config: dict[str, Any], ego_agent: str) -> 
     """The best-response planner of `env_name` for an ego playing `ego_agent`, or None if the game has none."""
     factory = game(env_name).best_response
     return factory(env_config, ego_agent) if factory else None
+
+
+def best_response_return(env_name: str, env_config: dict[str, Any], ego_agent: str, partner: Any) -> float | None:
+    """The expected score of the best ego in seat `ego_agent` against the fixed `partner`, exact; None where unknown."""
+    bound = game(env_name).best_response_return
+    return bound(partner, env_config, ego_agent) if bound else None

@@ -36,6 +36,9 @@ KeyFn = Callable[[np.ndarray], int]  # an observation -> the situation it is (se
 BestResponseFactory = Callable[[dict[str, Any], str], Any]
 # ({agent: policy with action_probs}, env_config) -> the exact expected score, or None where it cannot be known.
 ExactReturnFn = Callable[[dict[str, Any], dict[str, Any]], float | None]
+# (partner policy with action_probs, env_config, ego_agent) -> the expected score of the ego's best response to that
+# partner, exact, or None where it cannot be known (a partner that does not say what it draws from, a seat not planned).
+BestResponseReturnFn = Callable[[Any, dict[str, Any], str], float | None]
 
 
 @dataclass(frozen=True)
@@ -55,6 +58,9 @@ class GameRecord:
     convention_key: KeyFn | None = None  # None: each move is its own situation
     best_response: BestResponseFactory | None = None  # None: the ego cannot plan against a partner model
     exact_return: ExactReturnFn | None = None  # None: scores come from sampled episodes only
+    # The best response's expected score against a given partner: `evaluate` normalises returns by it. None:
+    # no exact bound is known (`evaluate` refuses the game).
+    best_response_return: BestResponseReturnFn | None = None
     # What a partner's observation shows that the ego's seat never observes (Hanabi: the ego's own hand). None:
     # the partner sees nothing the ego cannot know from its own observations and moves, so an adapter may read
     # the partner's moves in the situation the partner saw (`adaptation.registry.check_information`).

@@ -1,4 +1,4 @@
-"""Bandit partners: a fixed arm per context (a convention), hand-designed or drawn at random, and their built-in populations."""
+"""Bandit partners: a fixed arm per context (a convention), hand-designed or drawn at random, or drawn from given arm probabilities; their built-in populations."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import numpy as np
 
 from rllib_conv.envs.bandit import PAPER_ARMS, PAPER_CONTEXTS, good_arms, paper_prizes
 from rllib_conv.envs.spaces import check_choice
-from rllib_conv.partners.base import Partner
+from rllib_conv.partners.base import Partner, SampledPartner
 from rllib_conv.partners.kinds import register_kind
 from rllib_conv.partners.population import Population, from_partners, register_builtin, task_suffix
 
@@ -49,6 +49,45 @@ class BanditConventionPartner(Partner):
 
     def params(self) -> dict[str, Any]:
         return {"arms": list(self.arms)}
+
+
+@register_kind
+class BanditMixedPartner(SampledPartner):
+    """Pulls arm a in context c with probability `probs[c][a]`: a convention held with noise, or split between arms.
+
+    It says what it draws from (`action_probs`), so the bandit's exact return and its
+    best-response bound (`envs.best_response_return`) score it without sampling.
+    """
+
+    kind = "bandit_mixed"
+
+    def __init__(self, name: str, probs: list[list[float]]) -> None:
+        super().__init__(name)
+        table = np.asarray(probs, dtype=np.float64)
+        if table.ndim != 2 or table.size == 0 or not np.isfinite(table).all() or (table < 0).any():
+            raise ValueError(f"probs must be a contexts x arms table of probabilities >= 0, got {probs!r}")
+        if not np.allclose(table.sum(axis=1), 1.0, atol=1e-6):
+            raise ValueError(f"each row of probs must sum to 1, got sums {table.sum(axis=1).round(6).tolist()}")
+        self.probs = (table / table.sum(axis=1, keepdims=True)).tolist()
+        self._table = np.asarray(self.probs)
+
+    def action_probs(self, observations: np.ndarray, action_masks: np.ndarray) -> np.ndarray:
+        contexts = np.asarray(observations).argmax(axis=1)
+        masks = np.asarray(action_masks)
+        if contexts.size and contexts.max() >= len(self._table):
+            raise ValueError(
+                f"{self.name}: an observation names context {contexts.max()}, but this partner knows {len(self._table)} contexts"
+            )
+        if masks.shape[1] != self._table.shape[1]:
+            raise ValueError(f"{self.name}: it has {self._table.shape[1]} arms, the game {masks.shape[1]}")
+        probs = self._table[contexts]
+        # As the convention partner: mass on an illegal arm would hide a mismatched env.
+        if (probs * (masks == 0)).any():
+            raise ValueError(f"{self.name}: it pulls arms that are not legal in this game (mask {masks[0].tolist()})")
+        return probs
+
+    def params(self) -> dict[str, Any]:
+        return {"probs": [list(row) for row in self.probs]}
 
 
 def hand_designed_codes(symmetric: int, split: str) -> list[tuple[int, ...]]:

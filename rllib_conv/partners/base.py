@@ -72,3 +72,22 @@ class Partner(ABC):
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}(name={self.name!r}, {self.params()})"
+
+
+class SampledPartner(Partner):
+    """A stochastic partner defined by its `action_probs`: `act` draws from them with the partner's own seeded RNG.
+
+    Subclasses implement `action_probs` (and `params`); saying what they draw from lets a
+    game's exact return and best-response bound score them without sampling.
+    """
+
+    def __init__(self, name: str) -> None:
+        super().__init__(name)
+        self._rng = np.random.default_rng()
+
+    def act(self, observation: np.ndarray, action_mask: np.ndarray) -> int:
+        p = self.action_probs(np.asarray(observation)[None], np.asarray(action_mask)[None])[0]
+        return int(self._rng.choice(len(p), p=p))
+
+    def seed(self, seed: int | None) -> None:
+        self._rng = np.random.default_rng(seed)

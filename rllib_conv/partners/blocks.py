@@ -26,7 +26,7 @@ from rllib_conv.envs.blocks import (
     decode_observation,
     decode_observations,
 )
-from rllib_conv.partners.base import Partner
+from rllib_conv.partners.base import Partner, SampledPartner
 from rllib_conv.partners.kinds import register_kind
 from rllib_conv.partners.population import Population, from_partners, register_builtin, task_suffix
 
@@ -73,6 +73,36 @@ class PermutationPartner(Partner):
 
     def params(self) -> dict[str, Any]:
         return {"perm": list(self.perm)}
+
+
+@register_kind
+class NoisyPermutationPartner(SampledPartner):
+    """A `PermutationPartner` that slips: on its first move it places blue on a uniformly drawn cell with probability `noise`.
+
+    It says what it draws from (`action_probs`), so blocks' exact return and P1's
+    best-response bound score it without sampling; the bound is below 20 once `noise > 0`.
+    """
+
+    kind = "blocks_noisy_permutation"
+
+    def __init__(self, name: str, perm: list[int], noise: float) -> None:
+        super().__init__(name)
+        self.perm = _check_permutation(perm)
+        if not 0.0 <= float(noise) <= 1.0:
+            raise ValueError(f"noise must be a probability from 0 to 1, got {noise!r}")
+        self.noise = float(noise)
+        self._exact = PermutationPartner(name, list(self.perm))
+
+    def action_probs(self, observations: np.ndarray, action_masks: np.ndarray) -> np.ndarray:
+        exact = self._exact.action_probs(observations, action_masks)
+        seen = decode_observations(observations)
+        slips = (seen["move"] == 1) & (seen["grid"] == RED).any(axis=-1)  # where it places blue at all
+        exact[slips] *= 1.0 - self.noise
+        exact[slips, :NUM_CELLS] += self.noise / NUM_CELLS
+        return exact
+
+    def params(self) -> dict[str, Any]:
+        return {"perm": list(self.perm), "noise": self.noise}
 
 
 @register_kind

@@ -99,6 +99,12 @@ def marginals_name(runs: Sequence[str], *, episodes: int, seed: int, defaults: t
     )
 
 
+def evaluate_name(runs: Sequence[str], *, eval_set: str, module: str | None = None, episodes: int = 64, seed: int = 0) -> str:
+    """The name of an evaluation after its runs, its set (always: held-out and validation must not meet) and the options that differ."""
+    changed = [module and f"module={module}", episodes != 64 and f"episodes={episodes}", seed and f"seed={seed}"]
+    return name_from(runs, [Path(eval_set).stem, *(v for v in changed if v)])
+
+
 def seat_label(source: str, what: str, is_run: bool) -> str:
     """A seat's part of a pairing's name: the run's label (or the population's or kind's name), then what it plays."""
     return f"{run_label(source) if is_run else Path(source).stem}-{what}"

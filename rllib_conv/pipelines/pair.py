@@ -27,7 +27,7 @@ from rllib_conv.modules.multi import TASK_ID
 from rllib_conv.partners.base import Partner
 from rllib_conv.partners.episodes import play_episodes
 from rllib_conv.partners.trained import PolicyPartner
-from rllib_conv.pipelines.pair_config import PairConfig, is_run, population_seat, split_seat
+from rllib_conv.pipelines.pair_config import PairConfig, is_run, population_seat, split_seat, trained_game
 from rllib_conv.training.checkpoints import last_checkpoint
 from rllib_conv.training.evaluate import ego_head_partner, load_module
 from rllib_conv.training.experiment import trial_config
@@ -47,15 +47,19 @@ def _task_partner(module: Any, name: str, seed: int) -> PolicyPartner:
     return PolicyPartner(name, lambda obs, mask: module[TASK_ID].policy(obs, mask).logits, greedy=False, seed=seed)
 
 
+def module_player(module: Any, module_id: str, name: str, seed: int) -> Partner:
+    """Module `module_id` of a loaded ego as a sampling player: `task` (the task module alone) or one of its heads."""
+    return _task_partner(module, name, seed) if module_id == TASK_ID else ego_head_partner(module, module_id, seed)
+
+
 def _module_seat(text: str, trial: Path, module_id: str, seed: int) -> Seat:
     exp = trial_config(trial)
     module = load_module(last_checkpoint(trial))
     choices = [TASK_ID, *module.head_ids()]
     if module_id not in choices:
         raise ValueError(f"seat {text!r}: the ego in {str(trial)!r} has no module {module_id!r}; it has {choices}")
-    player = _task_partner(module, text, seed) if module_id == TASK_ID else ego_head_partner(module, module_id, seed)
-    pop = partners.get(exp.population)
-    return Seat(text, player, (exp.env or pop.env, {**pop.env_config, **exp.env_config}))
+    env, env_config, _ = trained_game(exp)
+    return Seat(text, module_player(module, module_id, text, seed), (env, env_config))
 
 
 def seat(text: str, seed: int = 0) -> Seat:

@@ -14,6 +14,7 @@ from pydantic import Field, PositiveInt, field_validator
 from rllib_conv import partners
 from rllib_conv.common.config_files import Strict
 from rllib_conv.common.run_folders import POPULATION_FILE
+from rllib_conv.training.experiment import ExperimentConfig
 from rllib_conv.training.settings import EnvName
 
 SEAT_SEPARATOR = ":"
@@ -104,3 +105,9 @@ def population_seat(text: str) -> tuple[partners.Population, partners.PartnerEnt
             f"seat {text!r}: population {pop.name!r} has no member {what!r}; it has {[e.name for e in pop.partners]}"
         )
     return pop, entry
+
+
+def trained_game(exp: ExperimentConfig) -> tuple[str, dict[str, Any], str]:
+    """The game a trained ego played: its env, its settings (the population's, then the experiment's) and its partner's seat."""
+    pop = partners.get(exp.population)
+    return exp.env or pop.env, {**pop.env_config, **exp.env_config}, pop.partner_agent

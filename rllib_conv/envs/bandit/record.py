@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from rllib_conv.envs.bandit.best_response import bandit_best_response_return
 from rllib_conv.envs.bandit.env import CollaborativeBanditEnv
 from rllib_conv.envs.bandit.exact import bandit_exact_return
 from rllib_conv.envs.bandit.keys import bandit_context
@@ -21,6 +22,7 @@ BANDIT = GameRecord(
     states=bandit_states,
     convention_key=bandit_context,
     exact_return=bandit_exact_return,
+    best_response_return=bandit_best_response_return,
     max_score=1.0,  # Sec. 4.1: "the maximum score ... is 1"
     partners=("rllib_conv.partners.bandit", "rllib_conv.partners.user_study"),
 )

@@ -95,3 +95,21 @@ class BlocksBestResponse:
 def blocks_best_response(env_config: dict[str, Any], ego_agent: str) -> BlocksBestResponse | None:
     """The planner for an ego playing P1; None for P2 (it would need to infer the hidden goal)."""
     return BlocksBestResponse(bool(env_config.get("new_task", False))) if ego_agent == "player_0" else None
+
+
+def blocks_best_response_return(partner: Any, env_config: dict[str, Any], ego_agent: str) -> float | None:
+    """P1's best response's expected score against the P2 `partner`, goals uniform.
+
+    None for an ego playing P2 (no planner), and for a partner that cannot say what it draws
+    from or learns from P1's moves within an episode (its moves then depend on more than its
+    observation, which the plan assumes).
+    """
+    planner = blocks_best_response(env_config, ego_agent)
+    if planner is None or getattr(partner, "learns_in_play", False):
+        return None
+    situations, masks = planner.situations()
+    try:
+        predict = partner.action_probs(situations, masks)
+    except ValueError:  # a partner that does not say what its actions are drawn from
+        return None
+    return float(planner.plan(predict).value.mean())

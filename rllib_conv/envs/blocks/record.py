@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from rllib_conv.envs.blocks.best_response import blocks_best_response
+from rllib_conv.envs.blocks.best_response import blocks_best_response, blocks_best_response_return
 from rllib_conv.envs.blocks.env import BlockPlacingEnv
 from rllib_conv.envs.blocks.exact import blocks_exact_return
 from rllib_conv.envs.blocks.keys import blocks_observation
@@ -25,6 +25,7 @@ BLOCKS = GameRecord(
     convention_key=blocks_observation,
     best_response=blocks_best_response,
     exact_return=blocks_exact_return,
+    best_response_return=blocks_best_response_return,
     max_score=20.0,  # Sec. 5: "a maximum of 20 points per game"
     partners=("rllib_conv.partners.blocks",),
 )
