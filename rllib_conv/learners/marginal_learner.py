@@ -63,8 +63,7 @@ class MarginalPPOLearner(FusedUpdateLearner):
 
     def stack_terms(self, stacked: StackedOutput) -> dict[str, torch.Tensor]:
         """Per replica: D_r and H_r ([K] each) of one minibatch, each with a gradient only when weighted."""
-        k, h, b = stacked.valid.shape
-        rows = stacked.valid.reshape(k, h * b)
+        rows = stacked.row_weights
         with torch.set_grad_enabled(self.lam > 0 and torch.is_grad_enabled()):
             reg = marginal_distance(stacked.task_logits, stacked.all_logits, rows)
         with torch.set_grad_enabled(self.head_l2 > 0 and torch.is_grad_enabled()):

@@ -175,6 +175,8 @@ def stacked_specs(replicas: list[Replica]) -> dict[str, RLModuleSpec]:
         "task_seeds": [stream_seed(rep.own_seed, TASK_ID) for rep in replicas],
         "head_seeds": [[stream_seed(rep.own_seed, mid) for mid in rep.setup.head_ids] for rep in replicas],
         "sample_seeds": [sampling_seed(rep.own_seed) for rep in replicas],
+        # A game that can list its ego's every state has few distinct ones: heads run once per distinct observation.
+        "few_situations": envs.game(first.population.env).states is not None,
     }
     specs = {
         STACK_ID: RLModuleSpec(module_class=EgoStack, observation_space=ego_obs, action_space=ego_act, model_config=stack_config)

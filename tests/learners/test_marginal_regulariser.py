@@ -5,10 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
+from ray.rllib.core.columns import Columns
+from ray.rllib.evaluation.postprocessing import Postprocessing
 from ray.rllib.algorithms.ppo.torch.ppo_torch_learner import PPOTorchLearner
 from ray.rllib.policy.sample_batch import MultiAgentBatch, SampleBatch
 
 from rllib_conv.learners.marginal_learner import MARGINAL_REG_KEY
+from rllib_conv.learners.ppo_loss import ppo_loss
 from rllib_conv.learners.regulariser import marginal_distance
 from rllib_conv.modules.multi import TASK_ID, replica_id
 from rllib_conv.modules.packed.stacked_multi import STACK_ID
@@ -93,6 +96,7 @@ def test_own_heads_forward_gives_the_all_heads_forwards_own_logits_and_values(ov
     """Without a regulariser the learner runs each head on its own rows only: the same logits and values."""
     learner = build_learner([Replica(bandit_setup(**overrides, seed=s)) for s in (0, 1)])
     assert not learner.loss_reads_all_heads
+    learner.module.stack.few_situations = False  # the per-row forward (the bandit's default runs per situation)
     _, obs, mask, valid, _ = learner.module.stack_batch(hand_batch(learner.module.head_ids(), rows=5, seed=2))
     valid[1, 2, 3:] = False  # a replica head with fewer rows than the others
     full = learner.module.forward_stacked(obs, mask, valid)
@@ -100,6 +104,52 @@ def test_own_heads_forward_gives_the_all_heads_forwards_own_logits_and_values(ov
     assert own.all_logits is None and own.head_out is None and full.all_logits is not None
     torch.testing.assert_close(own.logits, full.logits)
     torch.testing.assert_close(own.values, full.values)
+
+
+@pytest.mark.parametrize("overrides", [{"lam": 0.5, "head_l2": 0.1}, {"method": "no_task_logits"}, {"method": "oracle"}])
+def test_the_forward_per_situation_gives_the_per_row_numbers_and_gradients(overrides: dict) -> None:
+    """The bandit's training forward on its distinct contexts alone: the per-row forward's logits, values, D, H and gradients."""
+    learner = build_learner([Replica(bandit_setup(**overrides, seed=s)) for s in (0, 1)])
+    stack = learner.module.stack
+    assert stack.few_situations
+    batch = hand_batch(learner.module.head_ids(), rows=9, seed=6)
+    batch[next(iter(batch))][Columns.OBS]["action_mask"][0, 3] = 0.0  # one row's mask differs: a situation of its own
+    _, obs, mask, valid, _ = learner.module.stack_batch(batch)
+    valid[1, 0, 5:] = False  # padding rows count for nothing
+    results = {}
+    for few in (True, False):
+        stack.few_situations = few
+        out = learner.module.forward_stacked(obs, mask, valid)
+        terms = learner.stack_terms(out)
+        ppo = ppo_loss(
+            out.logits,
+            out.values,
+            torch.zeros_like(valid, dtype=torch.long),
+            {
+                Columns.ACTION_LOGP: torch.zeros(valid.shape),
+                Postprocessing.ADVANTAGES: torch.ones(valid.shape),
+                Postprocessing.VALUE_TARGETS: torch.ones(valid.shape),
+            },
+            valid=valid,
+            clip_param=0.2,
+            vf_loss_coeff=1.0,
+            vf_clip_param=10.0,
+            entropy_coeff=0.01,
+        )
+        total = ppo.total.sum() + sum(learner.stack_loss(terms).values())
+        grads = torch.autograd.grad(total, [p for p in stack.parameters() if p.requires_grad], allow_unused=True)
+        results[few] = (out, terms, grads)
+    (few_out, few_terms, few_grads), (row_out, row_terms, row_grads) = results[True], results[False]
+    assert few_out.all_logits.shape[2] < row_out.all_logits.shape[2]  # fewer situations than rows
+    rows = valid.unsqueeze(-1)
+    torch.testing.assert_close(few_out.logits * rows, row_out.logits * rows)
+    torch.testing.assert_close(few_out.values * valid, row_out.values * valid)
+    for key in few_terms:
+        torch.testing.assert_close(few_terms[key], row_terms[key])
+    for a, b in zip(few_grads, row_grads):
+        assert (a is None) == (b is None)
+        if a is not None:
+            torch.testing.assert_close(a, b, rtol=1e-4, atol=1e-6)
 
 
 def test_lam_zero_still_logs_the_regulariser_from_the_last_minibatch() -> None:

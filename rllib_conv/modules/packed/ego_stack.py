@@ -62,7 +62,8 @@ class EgoStack(TorchRLModule):
     `model_config`: `replicas` (K), `heads` (H), `task` and `head` (the plain modules'
     model configs, e.g. sizes and `oracle`/`use_task_logits`), `task_seeds` ([K] init
     seeds), `head_seeds` ([K][H] init seeds), `sample_seeds` ([K]: the generator each
-    replica's exploration draws its actions from).
+    replica's exploration draws its actions from), `few_situations` (default False: the
+    game has few distinct observations, so training forwards run once per distinct one).
     """
 
     def setup(self) -> None:
@@ -70,6 +71,7 @@ class EgoStack(TorchRLModule):
         self.replicas, self.heads = int(cfg["replicas"]), int(cfg["heads"])
         task_cfg, head_cfg = dict(cfg["task"]), dict(cfg["head"])
         self.use_task_logits = bool(head_cfg.get("use_task_logits", True))
+        self.few_situations = bool(cfg.get("few_situations", False))
         self._oracle = (
             oracle_for(task_cfg["oracle"]["env"], task_cfg["oracle"].get("env_config", {})) if task_cfg.get("oracle") else None
         )

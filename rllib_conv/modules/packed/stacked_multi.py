@@ -80,9 +80,12 @@ class StackedOutput:
     """What one training forward computes for the learner, batched over replicas K and heads H (rows B per head).
 
     `logits` [K, H, B, A]: each head's policy logits on its own rows; `values` [K, H, B];
-    `all_logits` [K, H, N, A] and `head_out` (before the task logits) [K, H, N, A]: every head
-    on every row of its replica (N = H x B), None when the forward ran each head on its own
-    rows only; `task_logits` [K, N, A]; `valid` [K, H, B]: the rows that exist (padding is False).
+    `all_logits` [K, H, M, A] and `head_out` (before the task logits) [K, H, M, A]: every head
+    on every row of its replica (M = N = H x B rows), or on every distinct situation of them
+    (`EgoStack.few_situations`), None when the forward ran each head on its own rows only;
+    `task_logits` [K, M, A]; `valid` [K, H, B]: the rows that exist (padding is False);
+    `row_weights` [K, M]: how many valid rows each of the M stands for (the regulariser's
+    and the head penalty's weights: 1 or 0 per row, a count per situation).
     """
 
     logits: torch.Tensor
@@ -91,6 +94,7 @@ class StackedOutput:
     head_out: torch.Tensor | None
     task_logits: torch.Tensor
     valid: torch.Tensor
+    row_weights: torch.Tensor
 
 
 class StackedEgoMultiRLModule(SharedWiringMultiRLModule):
@@ -178,22 +182,54 @@ class StackedEgoMultiRLModule(SharedWiringMultiRLModule):
         `all_heads=False` runs each head on its own rows only (H times less head work):
         `all_logits` and `head_out` are then None, for losses that read neither (no
         regulariser, no head penalty). The own logits and values are the same either way.
+        A stack of several heads in a game with few situations (`EgoStack.few_situations`)
+        runs every head on the distinct (observation, mask) rows alone (`_forward_situations`).
         """
         stack = self.stack
         k, h, b = obs.shape[:3]
         x = obs.reshape(k, h * b, -1)
         m = None if mask is None else mask.reshape(k, h * b, -1)
+        if stack.few_situations and all_heads and h > 1:  # one head, or each on its own rows: too little work to share
+            return self._forward_situations(x, m, valid)
         task = stack.task_forward(x, m)
         z_own = task.z.reshape(k * h, b, -1)
         values = stack.head_values(z_own).reshape(k, h, b) + task.value.reshape(k, h, b)
+        rows = valid.reshape(k, h * b)
         if not all_heads:
             head_own = stack._heads("head_pi", HEAD_POLICY, z_own).reshape(k, h, b, -1)
             own = stack.policy_logits(head_own, task.logits.reshape(k, h, b, -1), mask)
-            return StackedOutput(own, values, None, None, task.logits, valid)
+            return StackedOutput(own, values, None, None, task.logits, valid, rows)
         head_out = stack.head_outputs(task.z)  # [K, H, N, A]
         all_logits = stack.policy_logits(head_out, task.logits.unsqueeze(1), None if m is None else m.unsqueeze(1))
         own = all_logits.reshape(k, h, h, b, -1).diagonal(dim1=1, dim2=2).permute(0, 3, 1, 2)  # [K, H, B, A]
-        return StackedOutput(own, values, all_logits, head_out, task.logits, valid)
+        return StackedOutput(own, values, all_logits, head_out, task.logits, valid, rows)
+
+    def _forward_situations(self, x: torch.Tensor, m: torch.Tensor | None, valid: torch.Tensor) -> StackedOutput:
+        """`forward_stacked` run once per distinct (observation, mask) of the rows x [K, N, d], m [K, N, A].
+
+        Every output of a row is a function of its observation and mask alone, so the
+        stack runs every head on the U distinct ones (U is the bandit's few contexts, where
+        N is hundreds of rows) and each row takes its situation's logits and values: the
+        same numbers and gradients at a fraction of the work. The regulariser's rows are
+        then the situations, each weighted by how many valid rows it stands for.
+        """
+        stack = self.stack
+        k, h, b = valid.shape
+        d = x.shape[-1]
+        keys = x if m is None else torch.cat([x, m.to(x.dtype)], dim=-1)
+        distinct, inverse = torch.unique(keys.reshape(k * h * b, -1), dim=0, return_inverse=True)
+        u = len(distinct)
+        u_obs = distinct[:, :d].expand(k, u, d)
+        u_mask = None if m is None else distinct[:, d:].to(m.dtype).expand(k, u, m.shape[-1])
+        task = stack.task_forward(u_obs, u_mask)
+        head_out = stack.head_outputs(task.z)  # [K, H, U, A]
+        all_logits = stack.policy_logits(head_out, task.logits.unsqueeze(1), None if u_mask is None else u_mask.unsqueeze(1))
+        zz = task.z.unsqueeze(1).expand(k, h, u, task.z.shape[-1]).reshape(k * h, u, -1)
+        u_values = stack.head_values(zz).reshape(k, h, u) + task.value.unsqueeze(1)
+        row = inverse.view(k, h, b)  # each row's situation; head h's own rows are block h of its replica's rows
+        own = all_logits.gather(2, row.unsqueeze(-1).expand(k, h, b, all_logits.shape[-1]))
+        weights = torch.zeros((k, u), dtype=x.dtype).scatter_add_(1, inverse.view(k, h * b), valid.reshape(k, h * b).to(x.dtype))
+        return StackedOutput(own, u_values.gather(2, row), all_logits, head_out, task.logits, valid, weights)
 
     def stack_batch(
         self, batch: dict[str, Any]
