@@ -20,6 +20,21 @@ from rllib_conv.training.evaluate import load_module
 from rllib_conv.training.experiment import trial_config
 from rllib_conv.training.marginal_distance import marginal_distances, marginal_states
 
+# The report's columns, also those of an empty one (a plan whose every population is in `no_marginals`).
+MARGINAL_COLUMNS = [
+    "run",
+    "env",
+    "env_config",
+    "population",
+    "method",
+    "lam",
+    "z_dim",
+    "seed",
+    "distance",
+    "distance_all_states",
+    "states",
+]
+
 
 def marginal_report(trials: list[Path], episodes: int = 200, seed: int = 0) -> pd.DataFrame:
     """One row per trained ego with a task output: its task module's distance to the true marginals."""
@@ -51,7 +66,7 @@ def marginal_report(trials: list[Path], episodes: int = 200, seed: int = 0) -> p
                 "states": len(obs),
             }
         )
-    return pd.DataFrame(rows)
+    return pd.DataFrame(rows, columns=MARGINAL_COLUMNS)
 
 
 def write_marginal_report(trials: list[Path], path: str | Path, episodes: int = 200, seed: int = 0) -> pd.DataFrame:

@@ -10,7 +10,7 @@ import pytest
 
 from rllib_conv.cli import main
 from rllib_conv.common.resources import config_file
-from rllib_conv.common.run_folders import CONFIG_FILE, EVAL_FILE, read_marker
+from rllib_conv.common.run_folders import CONFIG_FILE, EVAL_FILE, MARGINALS_FILE, read_marker
 from rllib_conv.partners.overcooked import proxies_folder
 from rllib_conv.pipelines import human_proxies
 from rllib_conv.pipelines.plans import narrow, plan_for
@@ -202,6 +202,18 @@ def test_marginals_leave_out_unfinished_or_unbegun_trials_and_populations_whose_
     )
     repro.stage_marginals()
     assert seen == ["bandit-s2-hand__agg"]
+
+
+def test_marginals_of_a_plan_with_none_to_measure_write_an_empty_table(tmp_path) -> None:
+    """Every population in `no_marginals` (the user study alone): the stage writes the table's header, no crash."""
+    plan = narrow(plan_for("bandit"), ["bandit-user-study"], ["agg"])
+    repro = Reproduction(plan, tmp_path, log=lambda _: None)
+    assert repro.stage_items("marginals") == []
+    (tmp_path / "runs" / "bandit-user-study__agg" / "point_0" / "seed=0").mkdir(parents=True)
+    (tmp_path / "runs" / "bandit-user-study__agg" / "point_0" / "seed=0" / EVAL_FILE).write_text("{}")
+    repro.stage_marginals()
+    table = pd.read_csv(tmp_path / MARGINALS_FILE)
+    assert table.empty and {"run", "distance", "experiment"} <= set(table.columns)
 
 
 @pytest.mark.slow

@@ -98,7 +98,7 @@ class _FlatGroup:
         self.params: list[torch.Tensor] = list(optimizer.param_groups[0]["params"])
         self.widths = [p[(0,) * segment_dims].numel() for p in self.params]
         self.data = self._flat([p.detach() for p in self.params])
-        for p, view in zip(self.params, self._views(self.data)):
+        for p, view in zip(self.params, self.views(self.data)):
             p.data = view  # same values, now stored in the flat buffer the fused step updates in one call
         self._bind_state()
 
@@ -107,7 +107,7 @@ class _FlatGroup:
         d = self.segment_dims
         return torch.cat([t.reshape(*t.shape[:d], -1) if d else t.reshape(-1) for t in tensors], dim=-1)
 
-    def _views(self, flat: torch.Tensor) -> list[torch.Tensor]:
+    def views(self, flat: torch.Tensor) -> list[torch.Tensor]:
         """Each parameter's slice of `flat`, shaped as the parameter."""
         out, start = [], 0
         for p, width in zip(self.params, self.widths):
@@ -123,7 +123,7 @@ class _FlatGroup:
         self.exp_avg_sq = self._flat([st["exp_avg_sq"] for st in states]) if started else torch.zeros_like(self.data)
         first = float(states[0]["step"]) if started else 0.0
         self.steps = torch.full((len(self.params),), first, dtype=_get_scalar_dtype())
-        for i, (st, m, v) in enumerate(zip(states, self._views(self.exp_avg), self._views(self.exp_avg_sq))):
+        for i, (st, m, v) in enumerate(zip(states, self.views(self.exp_avg), self.views(self.exp_avg_sq))):
             st.update(step=self.steps[i], exp_avg=m, exp_avg_sq=v)
         self._bound = states[0]["exp_avg"]
 
@@ -177,7 +177,7 @@ class FusedAdamStep:
         grad = group.flat_grad()
         norms = torch.linalg.vector_norm(grad, dim=-1)
         if not bool(torch.isfinite(norms).all()):  # RLlib's per-tensor rules, on views of the flat gradient
-            return grad, clip_segments_per_tensor(group._views(grad), group.segment_dims, self.grad_clip)
+            return grad, clip_segments_per_tensor(group.views(grad), group.segment_dims, self.grad_clip)
         if self.grad_clip:
             grad.mul_(_coefficient(norms, self.grad_clip).unsqueeze(-1))
         return grad, norms if self.grad_clip else None
