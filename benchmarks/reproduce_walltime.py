@@ -12,7 +12,8 @@ set-up, RLlib iterations, evaluations, and what is left of cores x wall: Tune's 
 and idle cores), read from the `time/*` results every trial reports.
 
 `--measured` runs nothing: it reads a full plan already run by the new code (its stage
-markers and trials) beside the stage times an old `reproduce_summary` file recorded, and
+markers and trials) beside the stage times an old `reproduce_summary` file recorded, or the
+game folder of the old code's own run of the plan on the same machine, and
 writes `reproduce_walltime_<game>_full.json` (or `<NAME>.json`).
 """
 
@@ -145,15 +146,23 @@ def _print_rows(rows: list[dict[str, Any]]) -> None:
         print(f"{row['slice']:8} {'total':9} {row['old_wall_s']:8.0f} {row['new_wall_s']:8.0f} {row['speedup']:6.1f}")
 
 
+def _stage_seconds(game_dir: Path) -> dict[str, float]:
+    """The seconds of each finished stage of a reproduce game folder (its stage markers)."""
+    return {s["stage"]: s["seconds"] for s in loaders.load_stage_times(game_dir).to_dict(orient="records") if s.get("done")}
+
+
 def measured(game_dir: Path, old_summary: Path, cores: int, name: str | None = None) -> None:
     """The full plan of `game_dir` (already run) against the stage times of `old_summary`; print and write them (to `name`, default `reproduce_walltime_<game>_full`)."""
     # A stage's seconds count where recorded: a folder grown later (more seeds) marks its earlier stages not done.
-    old = {
-        s["stage"]: s["seconds"]
-        for s in json.loads(old_summary.read_text())["stages"]
-        if math.isfinite(s.get("seconds") or math.nan)
-    }
-    new = {s["stage"]: s["seconds"] for s in loaders.load_stage_times(game_dir).to_dict(orient="records") if s.get("done")}
+    if old_summary.is_dir():  # the old code's own full run, side by side with this one
+        old = _stage_seconds(old_summary)
+    else:
+        old = {
+            s["stage"]: s["seconds"]
+            for s in json.loads(old_summary.read_text())["stages"]
+            if math.isfinite(s.get("seconds") or math.nan)
+        }
+    new = _stage_seconds(game_dir)
     row = {
         "slice": game_dir.name,
         "what": f"the full {game_dir.name} plan: {loaders.read_plan(game_dir)}",
@@ -163,6 +172,7 @@ def measured(game_dir: Path, old_summary: Path, cores: int, name: str | None = N
         "old_stages_s": old,
         "new_stages_s": new,
         "new_breakdown": breakdown(game_dir, new, cores),
+        **({"old_breakdown": breakdown(old_summary, old, cores)} if old_summary.is_dir() else {}),
     }
     _print_rows([row])
     print(
@@ -178,7 +188,11 @@ def main() -> None:
         "--work", type=Path, default=None, help="where the old worktree and the slices' folders go (default: a temp dir)"
     )
     p.add_argument("--measured", type=Path, help="run nothing: a reproduce game folder the new code already ran in full")
-    p.add_argument("--old-summary", type=Path, help="with --measured: the old code's reproduce_summary JSON (its stage times)")
+    p.add_argument(
+        "--old-summary",
+        type=Path,
+        help="with --measured: the old code's reproduce_summary JSON (its stage times), or the game folder of its own full run",
+    )
     p.add_argument(
         "--name",
         default=None,
@@ -187,8 +201,8 @@ def main() -> None:
     args = p.parse_args()
     cores = os.cpu_count() or 1
     if args.measured or args.old_summary:
-        if not (args.measured and args.measured.is_dir() and args.old_summary and args.old_summary.is_file()):
-            p.error("--measured needs a game folder and --old-summary an existing reproduce_summary JSON")
+        if not (args.measured and args.measured.is_dir() and args.old_summary and args.old_summary.exists()):
+            p.error("--measured needs a game folder and --old-summary a reproduce_summary JSON or the old code's game folder")
         measured(args.measured, args.old_summary, cores, args.name)
         return
     work = args.work or Path(tempfile.mkdtemp(prefix="walltime-"))
