@@ -65,7 +65,10 @@ def test_curves_packed_together_equal_curves_run_one_at_a_time(bandit_egos, tmp_
         < len(list((tmp_path / "runs" / "adapt-a").glob("AdaptTrainable_*")))
         == 3
     )
-    pd.testing.assert_frame_equal(packed, alone, rtol=1e-5, atol=1e-6)
+    # Float tolerance: the bandit's learner runs on the distinct contexts of all packed replicas' rows at once
+    # (`StackedEgoMultiRLModule._forward_situations`), so a packed curve's matmuls have other shapes, and other
+    # rounding, than its lone run's; 64 Adam steps carry that to ~4e-5 of a return.
+    pd.testing.assert_frame_equal(packed, alone, rtol=1e-4, atol=1e-5)
     assert packed["exact_return"].nunique() > 3  # the curves moved
 
 
