@@ -30,6 +30,7 @@ from rllib_conv.common.run_folders import (
     GAME_MARKERS,
     HELDOUT_FILE,
     MARGINALS_FILE,
+    MARGINALS_FILE_COLUMNS,
     MARKER_SUFFIX,
     PLAN_FILE,
     POPULATIONS_DIR,
@@ -438,20 +439,12 @@ def load_zeroshot(root: str | Path) -> pd.DataFrame:
     return _concat(_read_tables(root, ZEROSHOT_DIR), ZEROSHOT_COLUMNS)
 
 
+# The file's columns, with the game, population and label first and what the loader adds last.
 MARGINAL_COLUMNS = [
     "game",
     "population",
     "label",
-    "run",
-    "env",
-    "env_config",
-    "method",
-    "lam",
-    "z_dim",
-    "seed",
-    "distance",
-    "distance_all_states",
-    "states",
+    *(c for c in MARGINALS_FILE_COLUMNS if c != "population"),
     "experiment",
     "trial",
 ]

@@ -78,6 +78,20 @@ CROSSPLAY_DIR = "crossplay"
 USER_STUDY_DIR = "user_study"
 SUPERSEDED_DIR = "superseded"
 MARGINALS_FILE = "marginals.csv"
+# The columns `marginals.csv` is written with (`pipelines.marginal_report`), also when it has no rows.
+MARGINALS_FILE_COLUMNS = (
+    "run",
+    "env",
+    "env_config",
+    "population",
+    "method",
+    "lam",
+    "z_dim",
+    "seed",
+    "distance",
+    "distance_all_states",
+    "states",
+)
 HELDOUT_FILE = "heldout.csv"  # the held-out evaluation: one row per (agent, seed, partner)
 MARKER_SUFFIX = ".done"
 # What marks a folder as one game of a reproduction.

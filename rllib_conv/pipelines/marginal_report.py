@@ -14,26 +14,12 @@ import pandas as pd
 from rllib_conv import partners
 from rllib_conv.common.atomic_files import replaced_atomically
 from rllib_conv.common.methods import method
+from rllib_conv.common.run_folders import MARGINALS_FILE_COLUMNS
 from rllib_conv.modules.multi import AGG_HEAD_ID
 from rllib_conv.training.checkpoints import last_checkpoint
 from rllib_conv.training.evaluate import load_module
 from rllib_conv.training.experiment import trial_config
 from rllib_conv.training.marginal_distance import marginal_distances, marginal_states
-
-# The report's columns, also those of an empty one (a plan whose every population is in `no_marginals`).
-MARGINAL_COLUMNS = [
-    "run",
-    "env",
-    "env_config",
-    "population",
-    "method",
-    "lam",
-    "z_dim",
-    "seed",
-    "distance",
-    "distance_all_states",
-    "states",
-]
 
 
 def marginal_report(trials: list[Path], episodes: int = 200, seed: int = 0) -> pd.DataFrame:
@@ -66,7 +52,7 @@ def marginal_report(trials: list[Path], episodes: int = 200, seed: int = 0) -> p
                 "states": len(obs),
             }
         )
-    return pd.DataFrame(rows, columns=MARGINAL_COLUMNS)
+    return pd.DataFrame(rows, columns=list(MARGINALS_FILE_COLUMNS))
 
 
 def write_marginal_report(trials: list[Path], path: str | Path, episodes: int = 200, seed: int = 0) -> pd.DataFrame:
