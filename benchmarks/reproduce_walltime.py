@@ -1,7 +1,7 @@
 """Wall time of fixed `reproduce` slices, by the code before the speed work (a git worktree of its commit) and now.
 
     OMP_NUM_THREADS=1 python -m benchmarks.reproduce_walltime [--old-commit 63f6b75] [--slices bandit blocks] [--work DIR] [--name NAME]
-    python -m benchmarks.reproduce_walltime --measured reproduce/bandit --old-summary benchmarks/results/reproduce_bandit_extended.json [--name NAME]
+    python -m benchmarks.reproduce_walltime --measured reproduce/bandit --old-summary benchmarks/results/reproduce_bandit_round2_old.json [--name NAME]
 
 Each slice runs from an empty folder, old code then new, one after the other on the same
 machine (it is shared and noisy: compare the ratio, not the seconds). Printed and written
