@@ -47,6 +47,7 @@ def test_counted_and_set_apart_streams() -> None:
     assert seeds.pick_seed(4) == 1_000_004
     assert seeds.pair_seed(10, 3) == 13
     assert seeds.member_seed(10, 0) == 11
+    assert [seeds.population_seed(7, p) for p in range(3)] == [7, 10_007, 20_007]
 
 
 def test_seeds_are_plain_ints_in_range_whatever_integer_type_comes_in() -> None:

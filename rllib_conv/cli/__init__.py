@@ -208,7 +208,9 @@ def _reproduce(command: Callable[..., argparse.ArgumentParser]) -> None:
     p.add_argument(
         "game", help="the game whose experiments to run (bandit, blocks, hanabi, or all three); with --plan any registered game"
     )
-    p.add_argument("--seeds", type=positive_int, default=3, help="seeds per method (default 3)")
+    p.add_argument(
+        "--seeds", type=positive_int, default=None, help="seeds per method (default: the seeds the plan declares, else 3)"
+    )
     p.add_argument("--quick", action="store_true", help="a small version (1 seed, short runs) for demos and tests")
     p.add_argument("--out", default="reproduce", help="output folder (default: reproduce)")
     p.add_argument("--populations", nargs="+", metavar="NAME", help="only these populations (e.g. bandit-s2-hand bandit-s1-hand)")

@@ -24,7 +24,9 @@ site:
 - **Set-apart streams.** Head-picking episodes in adaptation use `s + 1_000_000`
   (`pick_seed`), far from the evaluation episodes' `s + iteration`.
 - **Pairs and members.** Self-play pair k of a config seeded `s` is seeded `s + k`
-  (`pair_seed`); the i-th player inside a composite player seeded `s` (the convention
+  (`pair_seed`); population p of a plan's self-play entry with several independently trained
+  populations is seeded `s + 10_000 * p` (`population_seed`: no two populations share a pair
+  seed while a population has fewer than 10 000 pairs, and population 0 keeps `s`); the i-th player inside a composite player seeded `s` (the convention
   posterior's heads) `s + 1 + i` (`member_seed`).
 
 These are the numbers the library has always used: changing one changes every result, so
@@ -41,6 +43,7 @@ SHUFFLE_OFFSET = 2  # a replica's minibatch-shuffling streams draw from s + 2
 PARTNER_STRIDE = 1000  # the fixed partners of an unpacked ego: s * 1000 + i
 SEAT_STRIDE = 7919  # a prime: the seats of an episode series, s + 7919 * i
 SERIES_STRIDE = 1000  # per-partner episode series (the marginals' states): s + 1000 * i
+POPULATION_STRIDE = 10_000  # independently trained self-play populations: s + 10_000 * p
 PICK_SEED_OFFSET = 1_000_000  # head-picking episodes, apart from the evaluation episodes (s + iteration)
 
 
@@ -82,6 +85,11 @@ def series_seed(seed: int, index: int) -> int:
 def pair_seed(seed: int, pair: int) -> int:
     """The seed of self-play pair `pair` of a config seeded `seed`."""
     return int(seed) + int(pair)
+
+
+def population_seed(seed: int, population: int) -> int:
+    """The seed of the `population`-th of several independently trained self-play populations of one config seeded `seed`."""
+    return int(seed) + POPULATION_STRIDE * int(population)
 
 
 def member_seed(seed: int, index: int) -> int:

@@ -5,7 +5,15 @@ trained-ego variants (`methods`: label -> experiment settings), the adaptation-o
 and, at each scale (`full`, `quick`), the populations with their methods, the self-play
 populations, the zero-shot populations and the overrides. `plan_for` turns a file into a
 `Plan`; `narrow` keeps part of it (`--populations`, `--methods`). See `plan_bandit.yaml`'s
-header for the keys. Any registered game runs from a plan file given as `path` (a game
+header for the keys.
+
+A self-play entry with `populations: N` (N > 1) stands for N independently trained self-play
+populations, `<name>-p0` ... `<name>-p<N-1>`, equal in every setting but their pair seeds
+(`seeds.population_seed`); the plan records them as one group (`Plan.population_groups`,
+plan.json's `population_groups`), which the report pools with the population as a level
+above the seed. With N = 1 (the default) the population keeps its plain name, so the run
+folders of earlier plans are read as before. `full.seeds` declares, before the run, the
+seeds the plan's claims need: `--seeds` defaults to it, and the report flags a run with fewer. Any registered game runs from a plan file given as `path` (a game
 named by import path included); `reproduce all` runs the games the package ships a plan for.
 """
 
@@ -22,9 +30,24 @@ from rllib_conv.adaptation.registry import FRESH, check_information
 from rllib_conv.common import config_files
 from rllib_conv.common.config_files import Strict
 from rllib_conv.common.resources import available, config_file
+from rllib_conv.common.seeds import population_seed
+from rllib_conv.pipelines.selfplay_config import SelfPlayConfig
 
 # The registered games the package ships a plan for: what `reproduce all` runs.
 GAMES = tuple(g.name for g in envs.games() if f"plan_{g.name}.yaml" in available())
+# The key of a self-play entry that asks for several independently trained populations (not a self-play setting).
+POPULATIONS_KEY = "populations"
+DEFAULT_SEEDS = 3  # seeds of a full plan that declares none (`--seeds` unset)
+
+
+def population_names(name: str, count: int) -> list[str]:
+    """The populations of self-play entry `name` trained `count` times: `<name>-p0`, ...; `[name]` when `count` is 1."""
+    return [name] if count == 1 else [f"{name}-p{p}" for p in range(count)]
+
+
+def population_count(entry: dict[str, Any]) -> int:
+    """How many independent populations self-play entry `entry` trains (its `populations`, default 1)."""
+    return int(entry.get(POPULATIONS_KEY, 1))
 
 
 @dataclass
@@ -73,6 +96,9 @@ class Plan:
     # Population -> other populations whose test members the egos trained on it also adapt to (experiment `<other>__<label>`).
     adapt_to: dict[str, list[str]] = field(default_factory=dict)
     heldout: "HeldoutSpec | None" = None  # the held-out evaluation stage (`pipelines/heldout.py`), if any
+    # Self-play entry -> its independently trained populations (`<name>-p0`, ...), for entries with `populations` > 1.
+    population_groups: dict[str, list[str]] = field(default_factory=dict)
+    declared_seeds: int | None = None  # the seeds the plan's claims need, declared before the run (`full.seeds`)
 
 
 # --- the file's schema ------------------------------------------------------------------------
@@ -122,8 +148,17 @@ class HeldoutSpec(Strict):
 class ScaleSpec(Strict):
     """One scale of a plan file (`full` or `quick`); method lists name labels of the file's `methods`."""
 
+    seeds: PositiveInt | None = Field(
+        None,
+        description="the seeds this scale's claims need, declared before the run (full scale only): `--seeds` defaults "
+        "to it and the report flags a run with fewer",
+    )
     populations: dict[str, list[str]] = Field(default_factory=dict)
-    selfplay: list[dict[str, Any]] = Field(default_factory=list)
+    selfplay: list[dict[str, Any]] = Field(
+        default_factory=list,
+        description="self-play populations: overrides of tune_configs/selfplay_<game>.yaml, each with a `name`; "
+        "`populations: N` trains N independent ones, <name>-p0 ... <name>-p<N-1>",
+    )
     selfplay_methods: list[str] = Field(default_factory=list)
     zeroshot_populations: list[str] = Field(default_factory=list)
     zeroshot_methods: list[str] = Field(default_factory=list)
@@ -136,6 +171,16 @@ class ScaleSpec(Strict):
     zeroshot_overrides: dict[str, Any] = Field(default_factory=dict)
     adapt_to: dict[str, list[str]] = Field(default_factory=dict)
     heldout: HeldoutSpec | None = None
+
+    @model_validator(mode="after")
+    def _selfplay_entries(self) -> "ScaleSpec":
+        for i, entry in enumerate(self.selfplay):
+            if not isinstance(entry.get("name"), str):
+                raise ValueError(f"selfplay[{i}]: every self-play entry needs a `name`")
+            count = entry.get(POPULATIONS_KEY, 1)
+            if isinstance(count, bool) or not isinstance(count, int) or count < 1:
+                raise ValueError(f"selfplay[{i}] ({entry['name']}): `populations` must be a positive integer, got {count!r}")
+        return self
 
 
 class PlanFile(Strict):
@@ -176,12 +221,19 @@ class PlanFile(Strict):
                                 f"{scale}.adapt_to: {label!r} egos of {targets[other, label]!r} and {source!r} "
                                 f"would both adapt to {other!r}; give one of them another label"
                             )
+            if scale == "quick" and spec.seeds is not None:
+                raise ValueError("quick.seeds: the quick plan runs seed 0 alone; declare the seeds under `full`")
             if spec.heldout is not None:
-                selfplay = {sp.get("name") for sp in spec.selfplay}
+                selfplay = {sp.get("name"): population_count(sp) for sp in spec.selfplay}
                 for name, agent in spec.heldout.agents.items():
                     if agent.selfplay is not None and agent.selfplay not in selfplay:
                         raise ValueError(
                             f"{scale}.heldout.agents.{name}: {agent.selfplay!r} is not a self-play population of the plan"
+                        )
+                    if agent.selfplay is not None and selfplay[agent.selfplay] > 1:
+                        raise ValueError(
+                            f"{scale}.heldout.agents.{name}: {agent.selfplay!r} trains {selfplay[agent.selfplay]} populations; "
+                            "a held-out agent is one self-play population"
                         )
                     if agent.trained is not None and agent.trained not in trained.get(agent.population, []):
                         raise ValueError(
@@ -205,19 +257,21 @@ def read_plan_file(path: str | Path) -> PlanFile:
 
 
 def plan_for(
-    game: str, seeds: int = 3, quick: bool = False, train_steps: int | None = None, path: str | Path | None = None
+    game: str, seeds: int | None = None, quick: bool = False, train_steps: int | None = None, path: str | Path | None = None
 ) -> Plan:
     """The plan of `game` from `path` (default: the shipped plan), at the paper's scale or, with `quick`, the small one.
 
     Egos train for the game's budget (its record's `training_defaults()`) unless
-    `train_steps` sets another; the full plan runs seeds 0..`seeds`-1, the quick one seed 0.
+    `train_steps` sets another; the full plan runs seeds 0..`seeds`-1 (default: the seeds the
+    plan declares, `full.seeds`, else 3), the quick one seed 0. Self-play entries with
+    `populations` > 1 become their populations (`expand_selfplay`).
     """
     record = envs.game(game)  # ValueError naming the registered games
     if path is None and game not in GAMES:
         raise ValueError(
             f"game {game!r} has no shipped plan (games with one: {', '.join(GAMES)}, or all); give a plan file with --plan"
         )
-    if seeds < 1:
+    if seeds is not None and seeds < 1:
         raise ValueError(f"--seeds: expected at least 1 seed per method, got {seeds}")
     if train_steps is not None and train_steps < 1:
         raise ValueError(f"--train-steps: expected a positive number of env steps, got {train_steps}")
@@ -237,12 +291,15 @@ def plan_for(
             check_information(adapt_variants[label].settings.get("head_init", FRESH), game)
         except ValueError as exc:
             raise ValueError(f"plan file {str(source)!r}: adapt_variants.{label}: {exc}") from None
+    if seeds is None:
+        seeds = spec.full.seeds or DEFAULT_SEEDS
+    selfplay, groups = expand_selfplay(scale.selfplay, game)
     return Plan(
         game=game,
         seeds=[0] if quick else list(range(seeds)),
         paper_method=variants[spec.paper_method],
         populations={population: [variants[x] for x in labels] for population, labels in scale.populations.items()},
-        selfplay=scale.selfplay,
+        selfplay=selfplay,
         selfplay_methods=[variants[x] for x in scale.selfplay_methods],
         population_overrides=scale.population_overrides,
         zeroshot_populations=scale.zeroshot_populations,
@@ -256,9 +313,50 @@ def plan_for(
         zeroshot_overrides=scale.zeroshot_overrides,
         quick=quick,
         no_worse_margin=spec.no_worse_margin,
-        adapt_to=scale.adapt_to,
+        adapt_to=expand_adapt_to(scale.adapt_to, groups),
         heldout=scale.heldout,
+        population_groups=groups,
+        declared_seeds=None if quick else spec.full.seeds,
     )
+
+
+def expand_selfplay(entries: list[dict[str, Any]], game: str) -> tuple[list[dict[str, Any]], dict[str, list[str]]]:
+    """Self-play entries with their `populations` trained apart: (one entry per population, entry name -> population names).
+
+    Population p of an entry trains pairs seeded from `population_seed(seed, p)`, `seed` the
+    entry's or else `tune_configs/selfplay_<game>.yaml`'s; everything else is the entry's.
+    An entry with one population is kept as it is (no `-p0` suffix, its seed unchanged).
+    """
+    expanded, groups = [], {}
+    for entry in entries:
+        settings = {k: v for k, v in entry.items() if k != POPULATIONS_KEY}
+        count = population_count(entry)
+        if count == 1:
+            expanded.append(settings)
+            continue
+        seed = settings.get("seed", _selfplay_default_seed(game))
+        groups[settings["name"]] = population_names(settings["name"], count)
+        for p, name in enumerate(groups[settings["name"]]):
+            expanded.append({**settings, "name": name, "seed": population_seed(seed, p)})
+    return expanded, groups
+
+
+def _selfplay_default_seed(game: str) -> int:
+    """The self-play seed of `game`'s shipped self-play config (the schema's default where it ships none)."""
+    if f"selfplay_{game}.yaml" in available():
+        seed = config_files.read_yaml(config_file(f"selfplay_{game}.yaml"), "self-play config").get("seed")
+        if seed is not None:
+            return int(seed)
+    return int(SelfPlayConfig.model_fields["seed"].default)
+
+
+def expand_adapt_to(adapt_to: dict[str, list[str]], groups: dict[str, list[str]]) -> dict[str, list[str]]:
+    """`adapt_to` with each self-play entry of several populations replaced by its populations, as source and as target."""
+
+    def members(name: str) -> list[str]:
+        return groups.get(name, [name])
+
+    return {m: [t for other in others for t in members(other)] for source, others in adapt_to.items() for m in members(source)}
 
 
 def narrow(plan: Plan, populations: list[str] | None = None, methods: list[str] | None = None) -> Plan:
@@ -268,10 +366,15 @@ def narrow(plan: Plan, populations: list[str] | None = None, methods: list[str] 
     ValueError naming the unknown ones and the choices.
     """
     if populations:
-        known = [*plan.populations, *(sp["name"] for sp in plan.selfplay), *plan.zeroshot_populations]
+        known = [*plan.populations, *(sp["name"] for sp in plan.selfplay), *plan.zeroshot_populations, *plan.population_groups]
         unknown = sorted(set(populations) - set(known))
         if unknown:
             raise ValueError(f"--populations: {unknown} not in the {plan.game} plan; choose from {sorted(set(known))}")
+        # A self-play entry of several populations names them all.
+        populations = [m for name in populations for m in plan.population_groups.get(name, [name])]
+        plan.population_groups = {
+            k: [m for m in v if m in populations] for k, v in plan.population_groups.items() if set(v) & set(populations)
+        }
         plan.populations = {k: v for k, v in plan.populations.items() if k in populations}
         plan.selfplay = [sp for sp in plan.selfplay if sp["name"] in populations]
         plan.zeroshot_populations = [p for p in plan.zeroshot_populations if p in populations]

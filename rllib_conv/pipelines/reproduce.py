@@ -6,7 +6,7 @@ lands under `<out>/<game>/`:
 
 | stage | what | output |
 |---|---|---|
-| `selfplay` | self-play partner populations | `populations/<name>/` |
+| `selfplay` | self-play partner populations (an entry with `populations: N`: `<name>-p0` ... `<name>-p<N-1>`) | `populations/<name>/` |
 | `train` | egos: every method x lam x population x seed | `runs/<experiment>/` |
 | `adapt` | adaptation curves to test partners (also another population's: `adapt_to`), the adapt-only variants (`scratch`, ...) included | `adaptation/<experiment>.csv` |
 | `zeroshot` | the three zero-shot steps (bandit, blocks) | `zeroshot/<experiment>.csv` |
@@ -300,6 +300,11 @@ class Reproduction:
             plan["heldout"] = {"partners": self.plan.heldout.partners, "claims": self.plan.heldout.claims}
         if self.plan.no_worse_margin is not None:
             plan["no_worse_margin"] = self.plan.no_worse_margin  # the "no worse" claims' margin, declared in the plan
+        if self.plan.declared_seeds is not None:
+            plan["declared_seeds"] = self.plan.declared_seeds  # the seeds the claims need, declared in the plan
+        if self.plan.population_groups:
+            # Independently trained self-play populations of one entry: the report pools them, population above seed.
+            plan["population_groups"] = self.plan.population_groups
         (self.root / PLAN_FILE).write_text(json.dumps(plan, indent=2))
         times = {}
         for name, stage in stages:
@@ -392,7 +397,7 @@ def stage_runs(runs: Path, prefix: str, experiments: list[str]) -> list[Path]:
 def reproduce(
     game: str,
     out: str | Path = "reproduce",
-    seeds: int = 3,
+    seeds: int | None = None,
     quick: bool = False,
     address: str | None = None,
     populations: list[str] | None = None,
@@ -404,7 +409,8 @@ def reproduce(
 ) -> dict[str, dict[str, float]]:
     """Run `game` (or `all`) under `<out>/<game>/`, each plan optionally `narrow`ed; return the stage wall times per game.
 
-    `redo` names a finished stage to run again for the plan's experiments (see `Reproduction.redo`);
+    `seeds` defaults to the seeds each plan declares (`plan_for`). `redo` names a finished
+    stage to run again for the plan's experiments (see `Reproduction.redo`);
     `train_steps` replaces every ego's training budget (see `plan_for`); `plan_file` is a plan
     YAML to run instead of the shipped one (one game only). The report over `out` is built
     by `analysis.report.build_report`, which reads these folders (`rllib-conv reproduce` does both).

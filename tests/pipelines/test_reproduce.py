@@ -19,10 +19,12 @@ from rllib_conv.training.behaviour_cloning import BCSettings
 
 
 def test_narrow_keeps_the_named_populations_and_methods() -> None:
-    plan = narrow(plan_for("bandit"), ["bandit-s2-hand", "bandit-s1-hand", "bandit-s3-selfplay"], ["agg"])
+    plan = narrow(plan_for("bandit", seeds=3), ["bandit-s2-hand", "bandit-s1-hand", "bandit-s3-selfplay"], ["agg"])
     assert list(plan.populations) == ["bandit-s2-hand"]
     assert [m.label for m in plan.populations["bandit-s2-hand"]] == ["modular-lam0.5", "agg"]  # modular-lam0.5 always kept
-    assert [sp["name"] for sp in plan.selfplay] == ["bandit-s3-selfplay"]
+    # A self-play entry of three populations is named by its entry name: all three are kept.
+    assert [sp["name"] for sp in plan.selfplay] == [f"bandit-s3-selfplay-p{p}" for p in range(3)]
+    assert plan.population_groups == {"bandit-s3-selfplay": [f"bandit-s3-selfplay-p{p}" for p in range(3)]}
     assert plan.zeroshot_populations == ["bandit-s1-hand", "bandit-s2-hand"]  # s3 not named: dropped
     assert [m.label for m in plan.selfplay_methods] == ["modular-lam0.5", "agg"]
 
@@ -30,7 +32,7 @@ def test_narrow_keeps_the_named_populations_and_methods() -> None:
 def test_blocks_plan_adds_ours_with_the_head_penalty() -> None:
     plan = plan_for("blocks")
     assert [m.label for m in plan.zeroshot_methods] == ["modular-lam0.5", "no_task_logits", "modular-lam0.5-hl0.01"]
-    assert [m.label for m in plan_for("bandit").zeroshot_methods] == ["modular-lam0.5", "no_task_logits"]
+    assert [m.label for m in plan_for("bandit", seeds=3).zeroshot_methods] == ["modular-lam0.5", "no_task_logits"]
     assert [m.label for m in plan.selfplay_methods] == [
         "modular-lam0.5",
         "agg",
@@ -65,25 +67,25 @@ def test_blocks_plan_adapts_ours_from_a_picked_head_and_by_the_plain_and_guarded
     ]
     # The posterior and the guarded posterior run where the partner sees nothing the ego does not (not on Hanabi,
     # which guards the paper's adapter instead); picking only on blocks.
-    assert [(v.label, v.settings) for v in plan_for("bandit").adapt_variants] == [
+    assert [(v.label, v.settings) for v in plan_for("bandit", seeds=3).adapt_variants] == [
         ("scratch", {"method": "scratch"}),
         ("beyond-posterior", {"head_init": "posterior"}),
         ("beyond-guarded", {"head_init": "posterior", "guard": True}),
     ]
     assert [(v.label, v.settings) for v in plan_for("hanabi").adapt_variants][1:] == [("modular-lam0.5-guarded", {"guard": True})]
     # Adapt-only variants train nothing; each runs where its base egos are in the (narrowed) plan.
-    narrowed = Reproduction(narrow(plan, ["blocks-perm", "blocks-selfplay"], ["agg"]), Path("unused"))
-    trained = [f"{p}__{m}" for p in ("blocks-perm", "blocks-selfplay") for m in ("modular-lam0.5", "agg")]
+    narrowed = Reproduction(narrow(plan, ["blocks-perm", "blocks-selfplay-p1"], ["agg"]), Path("unused"))
+    trained = [f"{p}__{m}" for p in ("blocks-perm", "blocks-selfplay-p1") for m in ("modular-lam0.5", "agg")]
     assert narrowed.stage_experiments("adapt") == [
         *trained,
         *(
             f"{p}__{v}"
-            for p in ("blocks-perm", "blocks-selfplay")
+            for p in ("blocks-perm", "blocks-selfplay-p1")
             for v in ("scratch", "modular-lam0.5-pick", "beyond-posterior", "beyond-guarded")
         ),
     ]
     full = Reproduction(plan_for("blocks"), Path("unused")).stage_experiments("adapt")
-    assert "blocks-selfplay__modular-lam0.5-hl0.01-pick" in full and "blocks-perm__modular-lam0.5-hl0.01-pick" in full
+    assert "blocks-selfplay-p2__modular-lam0.5-hl0.01-pick" in full and "blocks-perm__modular-lam0.5-hl0.01-pick" in full
 
 
 @pytest.mark.parametrize(
@@ -95,7 +97,7 @@ def test_blocks_plan_adapts_ours_from_a_picked_head_and_by_the_plain_and_guarded
 )
 def test_narrow_rejects_unknown_names(populations, methods, match) -> None:
     with pytest.raises(ValueError, match=match):
-        narrow(plan_for("bandit"), populations, methods)
+        narrow(plan_for("bandit", seeds=3), populations, methods)
 
 
 def _train_only(monkeypatch, calls: list[str]) -> None:
@@ -107,7 +109,7 @@ def test_a_stage_reruns_only_when_the_plan_asks_for_more_than_its_marker_covers(
     calls: list[str] = []
     _train_only(monkeypatch, calls)
     logs: list[str] = []
-    narrowed = narrow(plan_for("bandit"), ["bandit-s2-hand"], ["agg"])
+    narrowed = narrow(plan_for("bandit", seeds=3), ["bandit-s2-hand"], ["agg"])
     Reproduction(narrowed, tmp_path, log=logs.append).run()
     seconds, covered = read_marker(tmp_path / "train.done")
     # Zero-shot's own egos (bandit-s2-hand is a zero-shot population, no_task_logits a zero-shot method) train here too.
@@ -117,10 +119,10 @@ def test_a_stage_reruns_only_when_the_plan_asks_for_more_than_its_marker_covers(
         "train": covered
     }  # what a report checks the marker against
 
-    Reproduction(narrow(plan_for("bandit"), ["bandit-s2-hand"], ["agg"]), tmp_path, log=logs.append).run()
+    Reproduction(narrow(plan_for("bandit", seeds=3), ["bandit-s2-hand"], ["agg"]), tmp_path, log=logs.append).run()
     assert len(calls) == 1 and logs[-1] == "[bandit] train: done before, skipped"
 
-    Reproduction(narrow(plan_for("bandit"), ["bandit-s2-hand"], ["maml"]), tmp_path, log=logs.append).run()
+    Reproduction(narrow(plan_for("bandit", seeds=3), ["bandit-s2-hand"], ["maml"]), tmp_path, log=logs.append).run()
     assert len(calls) == 2 and "not covered before: bandit-s2-hand__maml seeds=0,1,2 steps=10000)" in logs[-2]
     assert read_marker(tmp_path / "train.done")[1][-1] == "bandit-s2-hand__maml seeds=0,1,2 steps=10000"
 
@@ -134,12 +136,14 @@ def test_egos_train_for_the_papers_budget_unless_train_steps_sets_another(tmp_pa
     trained = ("modular-lam0.5", "agg", "no_task_logits", "modular-lam0.5-hl0.01")  # the zero-shot methods train too
     assert default.stage_items("train") == [f"blocks-perm__{m} seeds=0,1,2 steps=1000000" for m in trained]
 
-    bandit = Reproduction(narrow(plan_for("bandit"), ["bandit-s2-hand", "bandit-user-study"], ["agg"]), tmp_path)
+    bandit = Reproduction(narrow(plan_for("bandit", seeds=3), ["bandit-s2-hand", "bandit-user-study"], ["agg"]), tmp_path)
     assert [i.rsplit(" ", 1)[1] for i in bandit.stage_items("train")] == ["steps=10000"] * 2 + ["steps=40000"] * 2 + [
         "steps=10000"
     ]  # the user-study override
 
-    short = Reproduction(narrow(plan_for("bandit", train_steps=500), ["bandit-s2-hand", "bandit-user-study"], ["agg"]), tmp_path)
+    short = Reproduction(
+        narrow(plan_for("bandit", seeds=3, train_steps=500), ["bandit-s2-hand", "bandit-user-study"], ["agg"]), tmp_path
+    )
     assert all(short.experiment(p, m)["run"]["timesteps"] == 500 for p, m in short.trained())  # over the population override too
     assert short.experiment("bandit-user-study", short.plan.paper_method)["ppo"] == {
         "rollout_per_partner": 16
@@ -148,8 +152,10 @@ def test_egos_train_for_the_papers_budget_unless_train_steps_sets_another(tmp_pa
     # A folder trained with one budget is not done for another: the train stage runs again.
     calls: list[str] = []
     _train_only(monkeypatch, calls)
-    Reproduction(narrow(plan_for("bandit", train_steps=500), ["bandit-s2-hand"], ["agg"]), tmp_path, log=lambda _: None).run()
-    Reproduction(narrow(plan_for("bandit"), ["bandit-s2-hand"], ["agg"]), tmp_path, log=lambda _: None).run()
+    Reproduction(
+        narrow(plan_for("bandit", seeds=3, train_steps=500), ["bandit-s2-hand"], ["agg"]), tmp_path, log=lambda _: None
+    ).run()
+    Reproduction(narrow(plan_for("bandit", seeds=3), ["bandit-s2-hand"], ["agg"]), tmp_path, log=lambda _: None).run()
     assert calls == ["bandit", "bandit"]
     assert json.loads((tmp_path / "plan.json").read_text())["train_steps"] is None
 
@@ -173,7 +179,7 @@ def test_a_marker_without_items_covers_nothing(tmp_path, monkeypatch) -> None:
     _train_only(monkeypatch, calls)
     (tmp_path / "train.done").write_text("12.5 s\n")  # written before markers listed their experiments
     assert read_marker(tmp_path / "train.done") == (12.5, [])
-    Reproduction(narrow(plan_for("bandit"), ["bandit-s2-hand"], ["agg"]), tmp_path, log=lambda _: None).run()
+    Reproduction(narrow(plan_for("bandit", seeds=3), ["bandit-s2-hand"], ["agg"]), tmp_path, log=lambda _: None).run()
     seconds, covered = read_marker(tmp_path / "train.done")
     assert calls == ["bandit"] and seconds >= 12.5 and len(covered) == 3
 
@@ -181,7 +187,7 @@ def test_a_marker_without_items_covers_nothing(tmp_path, monkeypatch) -> None:
 def test_marginals_leave_out_unfinished_or_unbegun_trials_and_populations_whose_conventions_are_not_uniform(
     tmp_path, monkeypatch
 ) -> None:
-    plan = narrow(plan_for("bandit"), ["bandit-s2-hand", "bandit-user-study"], ["agg"])
+    plan = narrow(plan_for("bandit", seeds=3), ["bandit-s2-hand", "bandit-user-study"], ["agg"])
     repro = Reproduction(plan, tmp_path, log=lambda _: None)
     assert repro.stage_items("marginals") == [
         f"bandit-s2-hand__{m} seeds=0,1,2" for m in ("agg", "modular-lam0.5", "no_task_logits")
@@ -206,7 +212,7 @@ def test_marginals_leave_out_unfinished_or_unbegun_trials_and_populations_whose_
 
 def test_marginals_of_a_plan_with_none_to_measure_write_an_empty_table(tmp_path) -> None:
     """Every population in `no_marginals` (the user study alone): the stage writes the table's header, no crash."""
-    plan = narrow(plan_for("bandit"), ["bandit-user-study"], ["agg"])
+    plan = narrow(plan_for("bandit", seeds=3), ["bandit-user-study"], ["agg"])
     repro = Reproduction(plan, tmp_path, log=lambda _: None)
     assert repro.stage_items("marginals") == []
     (tmp_path / "runs" / "bandit-user-study__agg" / "point_0" / "seed=0").mkdir(parents=True)
@@ -264,7 +270,7 @@ def test_quick_overcooked_reproduction_trains_adapts_to_cooks_and_human_proxies_
 
 def test_redo_moves_a_stages_outputs_aside_and_runs_it_again(tmp_path, monkeypatch) -> None:
     logs: list[str] = []
-    repro = Reproduction(narrow(plan_for("bandit"), ["bandit-s2-hand"], ["agg"]), tmp_path, log=logs.append)
+    repro = Reproduction(narrow(plan_for("bandit", seeds=3), ["bandit-s2-hand"], ["agg"]), tmp_path, log=logs.append)
     items = repro.stage_items("zeroshot")
     names = [i.split(" seeds=")[0] for i in items]
     assert names == ["bandit-s2-hand__modular-lam0.5", "bandit-s2-hand__no_task_logits"]
