@@ -15,6 +15,14 @@ Methods of one population share seed numbers and test partners, so a comparison 
 methods is a paired difference: A's row (seed k, partner p) minus B's row (seed k, partner
 p), averaged per seed, then the t-interval over seeds (`paired_difference`). Groups without
 shared units (two populations) are compared by Welch's unpaired interval (`unpaired_difference`).
+
+Populations above seeds. Where a result pools several independently trained populations of
+one kind (a plan's self-play entry with `populations: N`; the frame then names the kind in
+`population` and each row's own population in `POPULATION_ID`), the population is the
+replicated unit: each seed's rows are averaged over its test partners, the seeds within a
+population, and the t-interval is over the population means (n = populations). Paired
+differences pair within (population, seed, partner) and are averaged up the same way. A group
+with one population (every frame without `POPULATION_ID`) keeps the seed as its unit.
 """
 
 from __future__ import annotations
@@ -32,8 +40,17 @@ from rllib_conv.common.user_study_table import CONTEXTS, TASKS, first_try_scores
 CONFIDENCE = 0.95
 # The replicated unit: one trained ego per seed.
 SEED = "seed"
+# Where populations are pooled (see the module's docstring): the independently trained population a row came from.
+POPULATION_ID = "population_id"
+# The unit column of `unit_means`: a seed, or a population id where a group pools several.
+UNIT = "unit"
 # Keys that identify one adaptation curve (one trained ego adapting to one test partner).
 CURVE_KEYS = ["game", "population", "label", "run", "seed", "partner"]
+
+
+def curve_keys(df: pd.DataFrame) -> list[str]:
+    """`CURVE_KEYS`, with `POPULATION_ID` where `df` pools populations."""
+    return [*CURVE_KEYS, POPULATION_ID] if POPULATION_ID in df.columns else list(CURVE_KEYS)
 
 
 def mean_ci(values: Iterable[float]) -> tuple[float, float, float, int]:
@@ -73,9 +90,36 @@ def seed_means(df: pd.DataFrame, by: Sequence[str], value: str) -> pd.DataFrame:
     return df.groupby([*by, SEED], sort=True, dropna=False)[value].mean().reset_index()
 
 
+def unit_means(df: pd.DataFrame, by: Sequence[str], value: str) -> pd.DataFrame:
+    """One row per (`by`, unit): the mean of `value` over the unit's rows, in column `value`; the unit in column `UNIT`.
+
+    The unit is the seed (its mean over its rows, e.g. test partners), or, in a group of `by`
+    that pools several populations (`POPULATION_ID`), the population: its seeds' means
+    averaged. Without `POPULATION_ID` this is `seed_means` with the seed column named `UNIT`.
+    """
+    by = list(by)
+    if POPULATION_ID not in df.columns:
+        return seed_means(df, by, value).rename(columns={SEED: UNIT})
+    if df.empty:
+        return pd.DataFrame(columns=[*by, UNIT, value])
+    per_seed = df.groupby([*by, POPULATION_ID, SEED], sort=True, dropna=False)[value].mean().reset_index()
+    if by:
+        pooled = per_seed.groupby(by, sort=False, dropna=False)[POPULATION_ID].transform("nunique") > 1
+    else:
+        pooled = pd.Series(per_seed[POPULATION_ID].nunique() > 1, index=per_seed.index)
+    populations = per_seed[pooled].groupby([*by, POPULATION_ID], sort=True, dropna=False)[value].mean().reset_index()
+    seeds = per_seed[~pooled].drop(columns=POPULATION_ID)
+    parts = [populations.rename(columns={POPULATION_ID: UNIT}), seeds.rename(columns={SEED: UNIT})]
+    return pd.concat([x for x in parts if not x.empty] or parts[:1], ignore_index=True)[[*by, UNIT, value]]
+
+
 def seed_summary(df: pd.DataFrame, by: Sequence[str], value: str) -> pd.DataFrame:
-    """`summarise` with the seed as the unit: per group, each seed's mean over its rows, then the 95% t-interval over seeds (n = seeds)."""
-    return summarise(seed_means(df, by, value), by, value)
+    """`summarise` with the seed as the unit: per group, each seed's mean over its rows, then the 95% t-interval over seeds (n = seeds).
+
+    A group that pools several populations (`POPULATION_ID`) has the population as its unit
+    (`unit_means`): seeds averaged within each population, the interval over populations (n = populations).
+    """
+    return summarise(unit_means(df, by, value), by, value)
 
 
 def paired_difference(
@@ -87,14 +131,34 @@ def paired_difference(
     Rows are paired on (seed, *`within`), e.g. (seed k, partner p) of A with (seed k,
     partner p) of B; units only one of them has are left out. Each seed's differences are
     averaged, and the interval is over those seed means: NaN with fewer than two shared seeds.
+    Where `df` pools several populations (`POPULATION_ID`), rows pair within (population,
+    seed, *`within`), each seed's differences are averaged, then each population's seeds, and
+    the interval and the count are over populations.
     """
-    keys = [SEED, *within]
+    pooled = POPULATION_ID in df.columns and df[POPULATION_ID].nunique() > 1
+    keys = [POPULATION_ID, SEED, *within] if pooled else [SEED, *within]
     sides = [df[df[label] == name].groupby(keys)[value].mean() for name in (a, b)]
     both = pd.concat(sides, axis=1, keys=["a", "b"], join="inner").dropna()
     if both.empty:
         return math.nan, math.nan, math.nan, 0
+    if pooled:
+        per_seed = (both["a"] - both["b"]).groupby(level=[POPULATION_ID, SEED]).mean()
+        return mean_ci(per_seed.groupby(level=POPULATION_ID).mean())
     per_seed = (both["a"] - both["b"]).groupby(level=SEED).mean()
     return mean_ci(per_seed)
+
+
+def seeds_for_half_width(sd: float, half_width: float) -> int:
+    """The fewest units n (>= 2) whose 95% t-interval of a mean, at standard deviation `sd`, is narrower than +/- `half_width`.
+
+    Half-width t(0.975, n - 1) * sd / sqrt(n): the power note's rule for declaring seeds before a run.
+    """
+    if not (sd >= 0 and half_width > 0):
+        raise ValueError(f"need sd >= 0 and half_width > 0; got {sd}, {half_width}")
+    n = 2
+    while float(stats.t.ppf(0.5 + CONFIDENCE / 2, n - 1)) * sd / math.sqrt(n) >= half_width:
+        n += 1
+    return n
 
 
 def unpaired_difference(a: Iterable[float], b: Iterable[float]) -> tuple[float, float, float, int]:
@@ -143,18 +207,19 @@ def with_value(df: pd.DataFrame) -> pd.DataFrame:
 
 
 def adaptation_auc(curves: pd.DataFrame) -> pd.DataFrame:
-    """One row per adaptation curve (game, population, label, run, seed, partner): `auc`, `start`, `end`, `points`.
+    """One row per adaptation curve (game, population, label, run, seed, partner; `POPULATION_ID` where pooled): `auc`, `start`, `end`, `points`.
 
     `curves` is `loaders.load_adaptation`'s frame. `auc` is the mean return over all the
     curve's evaluation points (step 0 included), i.e. the area under the curve divided by
     its length; `start` and `end` are the returns at the first and last step.
     """
-    columns = [*CURVE_KEYS, "auc", "start", "end", "points", "last_step", "value_source"]
+    keys = curve_keys(curves)
+    columns = [*keys, "auc", "start", "end", "points", "last_step", "value_source"]
     if curves.empty:
         return pd.DataFrame(columns=columns)
     data = with_value(curves).sort_values("steps")
     rows = []
-    for key, g in data.groupby(CURVE_KEYS, sort=True, dropna=False):
+    for key, g in data.groupby(keys, sort=True, dropna=False):
         rows.append(
             (
                 *key,
@@ -206,7 +271,7 @@ def curve_band(curves: pd.DataFrame) -> pd.DataFrame:
     if curves.empty:
         return pd.DataFrame(columns=columns)
     data = with_value(curves).sort_values("steps")
-    data["point"] = data.groupby(CURVE_KEYS, sort=False, dropna=False).cumcount()
+    data["point"] = data.groupby(curve_keys(data), sort=False, dropna=False).cumcount()
     band = seed_summary(data, keys, "value")
     steps = data.groupby(keys, dropna=False)["steps"].mean().round().astype("int64").rename("steps").reset_index()
     return band.merge(steps, on=keys)[columns]

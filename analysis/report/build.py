@@ -19,6 +19,14 @@ from analysis.report.sections.training import training_section
 from analysis.report.sections.user_study import user_study_section
 from analysis.report.sections.zeroshot import zeroshot_section
 
+# Said only where a result pools several independently trained populations (earlier reports read as they were).
+POOLED_STATISTICS = (
+    " Where one result pools several independently trained self-play populations (listed under What was found), the "
+    "population is the unit above the seed: each seed is averaged over its test partners, the seeds within each "
+    "population, and the interval is over the population means (n = populations); paired differences pair within "
+    "(population, seed, test partner) and are averaged up the same way."
+)
+
 
 def build_report(root: str | Path, out: str | Path | None = None, user_study: Iterable[str | Path] | None = None) -> Path:
     """Build `report.md` and its figures for the reproduction under `root`; return the report's path.
@@ -63,7 +71,8 @@ def build_report(root: str | Path, out: str | Path | None = None, user_study: It
         "is judged on the paired difference A − B over the (seed, test partner) units both methods share, averaged per seed, "
         "with its 95% t-interval over seeds: supported when the whole interval is above 0, contradicted when it is below 0, "
         "not shown otherwise; these are the only verdicts, and the tallies count them. The paper's claims are checked on its "
-        "own method (ours λ=0.5) alone; other variants of ours are judged in tables of their own and never change a verdict.",
+        "own method (ours λ=0.5) alone; other variants of ours are judged in tables of their own and never change a verdict."
+        + (POOLED_STATISTICS if ctx.kinds else ""),
         "",
     ]
     text = "\n".join(head + [body[0], "", differences_section(ctx), ""] + [b + "\n" for b in body[1:]])

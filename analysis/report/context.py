@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 
 from analysis import figures, loaders
+from analysis.populations import member_kinds, pool
 from analysis.report.formatting import digits
 from analysis.report.verdicts import ClaimCheck, Comparison
 from analysis.summaries import seed_summary
@@ -30,11 +31,14 @@ class Context:
         self.games = loaders.game_dirs(root)
         self.plans = {loaders.game_of(g): loaders.read_plan(g) for g in self.games}
         self.stages = loaders.load_stage_times(root)
-        self.training = loaders.load_training(root)
-        self.evals = loaders.load_evals(root)
-        self.adaptation = loaders.load_adaptation(root)
-        self.zeroshot = loaders.load_zeroshot(root)
-        self.marginals = loaders.load_marginals(root)
+        # Independently trained populations of one kind are reported as one, the population above the seed
+        # (`analysis.populations`); the self-play reports, cross-play and held-out tables stay per population.
+        self.kinds = member_kinds(self.plans.values())
+        self.training = pool(loaders.load_training(root), self.kinds)
+        self.evals = pool(loaders.load_evals(root), self.kinds)
+        self.adaptation = pool(loaders.load_adaptation(root), self.kinds)
+        self.zeroshot = pool(loaders.load_zeroshot(root), self.kinds)
+        self.marginals = pool(loaders.load_marginals(root), self.kinds)
         self.selfplay = loaders.load_selfplay_reports(root)
         self.crossplay = loaders.load_crossplay(root)
         self.heldout = loaders.load_heldout(root)
@@ -52,6 +56,10 @@ class Context:
             if not frame.empty and population in set(frame["population"]):
                 return str(frame.loc[frame["population"] == population, "game"].iloc[0])
         return None
+
+    def pooled(self, population: str) -> list[str]:
+        """The independently trained populations a result of `population` pools (none: a population of its own)."""
+        return sorted(m for m, kind in self.kinds.items() if kind == population)
 
     def quick(self, game: str | None) -> bool:
         """Whether `game` was run with the quick (tiny) plan."""
@@ -79,6 +87,9 @@ class Context:
         seeds = self.plans.get(game or "", {}).get("seeds", [])
         if seeds and len(seeds) < PAPER_SEEDS and not self.quick(game):
             out.append(f"only {len(seeds)} seed(s)")
+        declared = self.plans.get(game or "", {}).get("declared_seeds")
+        if declared is not None and len(seeds) < declared and not self.quick(game):
+            out.append(f"{len(seeds)} of the {declared} seeds the plan declared its claims need")
         row = self.train_summary[(self.train_summary["population"] == population) & (self.train_summary["label"] == label)]
         top = loaders.max_score(self.plans.get(game or "", {"game": game}))
         # A single network (BaselineAgg, MAML) cannot follow conflicting conventions: a low training return is expected there.

@@ -16,6 +16,7 @@ from analysis.summaries import (
     mean_ci,
     paired_difference,
     seed_summary,
+    seeds_for_half_width,
     summarise,
     uniform_prior_return,
     unpaired_difference,
@@ -191,3 +192,14 @@ def test_uniform_prior_adapter_known_answers() -> None:
     for m in range(5):
         returns = [uniform_prior_return(4, m, t) for t in range(0, 300, 7)]
         assert all(a <= b <= 1.0 for a, b in zip(returns, returns[1:]))
+
+
+def test_seeds_for_half_width_known_values() -> None:
+    # sd 0.0138: t(0.975, 8) * 0.0138 / 3 = 2.3060 * 0.0046 = 0.01061 >= 0.01 at 9 seeds;
+    # t(0.975, 9) * 0.0138 / sqrt(10) = 2.2622 * 0.004364 = 0.00987 < 0.01 at 10.
+    assert seeds_for_half_width(0.0138, 0.01) == 10
+    # sd 0.0102: 2.4469 * 0.0102 / sqrt(7) = 0.00943 at 7; 2.5706 * 0.0102 / sqrt(6) = 0.01070 at 6.
+    assert seeds_for_half_width(0.0102, 0.01) == 7
+    assert seeds_for_half_width(0.0, 0.01) == 2  # no spread: the smallest n with an interval
+    with pytest.raises(ValueError, match="half_width > 0"):
+        seeds_for_half_width(0.01, 0.0)

@@ -18,7 +18,7 @@ from analysis.report.verdicts import (
     claims_block,
     variants_block,
 )
-from analysis.summaries import adaptation_auc, seed_means, seed_summary, unpaired_difference
+from analysis.summaries import adaptation_auc, seed_summary, unit_means, unpaired_difference
 from rllib_conv.common.methods import BASELINES, PAPER_METHOD, SCRATCH
 
 # The labels the paper's adaptation claims are about; every other label is a variant of ours.
@@ -42,7 +42,7 @@ def adaptation_claims(ctx: Context, auc: pd.DataFrame) -> list[ClaimCheck]:
         if "oracle" in labels and others:
             verdict, evidence = beats_all(p, "oracle", others, "auc", WITHIN, places)
             checks.append(ClaimCheck(claims["oracle-upper"], scope, verdict, "AUC " + evidence, game))
-    ours = seed_means(auc[auc["label"] == PAPER_METHOD], ["population"], "auc")
+    ours = unit_means(auc[auc["label"] == PAPER_METHOD], ["population"], "auc")  # seeds, or populations where pooled
     for kind in ("hand", "selfplay"):
         named = [f"bandit-s{m}-{kind}" for m in (2, 3, 4)]
         present = [x for x in named if x in set(ours["population"])]

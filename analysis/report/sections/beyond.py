@@ -24,7 +24,7 @@ from analysis.paper import label_name, population_name
 from analysis.report.context import Context
 from analysis.report.formatting import digits, fmt_summary, md_table
 from analysis.report.verdicts import NOT_SHOWN, Difference, Judgement, advantage, beats_every, no_worse, no_worse_margin
-from analysis.summaries import adaptation_auc, mean_ci, seed_means, seed_summary, uniform_prior_return
+from analysis.summaries import adaptation_auc, mean_ci, seed_summary, uniform_prior_return, unit_means
 from rllib_conv.common import adapters
 from rllib_conv.common.methods import BEYOND_GUARDED, BEYOND_POSTERIOR, PAPER_METHOD
 
@@ -46,7 +46,7 @@ def symmetric_contexts(population: str) -> int | None:
 def bayes_gap(curves: pd.DataFrame, symmetric: int, label: str) -> Difference:
     """AUC of `label`'s `curves` − the uniform-prior adapter's AUC per seed (the latter at the same evaluation points), with its interval over seeds."""
     bayes = float(np.mean([uniform_prior_return(BANDIT_CONTEXTS, symmetric, int(s)) for s in sorted(curves["steps"].unique())]))
-    auc = seed_means(adaptation_auc(curves), [], "auc")["auc"].to_numpy() - bayes
+    auc = unit_means(adaptation_auc(curves), [], "auc")["auc"].to_numpy() - bayes
     return Difference(label_name(label), f"uniform-prior adapter ({bayes:.3f})", *mean_ci(auc))
 
 

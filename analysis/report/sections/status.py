@@ -6,6 +6,7 @@ import pandas as pd
 
 from analysis import loaders
 from analysis.paper import label_name
+from analysis.populations import GROUPS_KEY
 from analysis.report.context import Context
 from analysis.report.formatting import md_table
 from rllib_conv.common.methods import EXTENSIONS
@@ -67,6 +68,7 @@ def status_section(ctx: Context) -> str:
             rows,
         )
     )
+    lines += seeds_and_populations(ctx)
     for game in loaders.MAX_SCORE:
         if game not in ctx.plans:
             ctx.notes.append(f"{game}: no folder under the root; its figures and numbers are skipped")
@@ -78,3 +80,28 @@ def status_section(ctx: Context) -> str:
             f"{label_name(label)} (`{label}`) is not in the paper: it is listed in the tables without a paper number and left out of the paper's claims"
         )
     return "\n".join(lines)
+
+
+def seeds_and_populations(ctx: Context) -> list[str]:
+    """Lines on the seeds each plan declared before the run (flagged where the run has fewer) and on pooled populations.
+
+    Nothing for a folder whose plan.json declares no seeds and pools no populations (earlier runs).
+    """
+    lines = []
+    for game, plan in ctx.plans.items():
+        declared, run = plan.get("declared_seeds"), len(plan.get("seeds", []))
+        if declared is not None:
+            fewer = run < declared and not plan.get("quick")
+            flag = f" **Fewer than declared: every claim below is judged on {run} of the {declared} seeds it needs.**"
+            lines.append(
+                f"- {game}: the plan declared {declared} seeds per claim before the run; this run has {run}.{flag if fewer else ''}"
+            )
+            if fewer:
+                ctx.notes.append(f"{game}: {run} seeds run of the {declared} the plan declared its claims need")
+        for kind, members in sorted(plan.get(GROUPS_KEY, {}).items()):
+            lines.append(
+                f"- {game}: `{kind}` pools {len(members)} independently trained self-play populations "
+                f"({', '.join(f'`{m}`' for m in members)}): each seed is averaged over its test partners, the seeds within "
+                "each population, and its intervals are over the population means (n = populations)."
+            )
+    return ["", *lines] if lines else []
