@@ -167,6 +167,9 @@ CONTROL_LABELS: tuple[str, ...] = (CONTROL_LOOKUP, CONTROL_COUNTS, CONTROL_PRIOR
 # The adapters (`common.adapters`) behind each shipped label that adapts by more than the paper's fresh head (the
 # report's "information used"; every other label adapts by the fresh head): the shipped plans' settings, checked by a test.
 ADAPTED_BY: dict[str, tuple[str, ...]] = {
+    GUARDED: (adapters.FRESH, adapters.GUARD),
+    PICKED: (adapters.PICK,),
+    HEAD_PENALTY_PICKED: (adapters.PICK,),
     BEYOND_POSTERIOR: (adapters.POSTERIOR,),
     BEYOND_GUARDED: (adapters.POSTERIOR, adapters.GUARD),
     CONTROL_LOOKUP: (adapters.LOOKUP,),
