@@ -28,6 +28,9 @@ from rllib_conv.common.methods import (  # noqa: E402
     BC_TRAINED,
     BEYOND_GUARDED,
     BEYOND_POSTERIOR,
+    CONTROL_COUNTS,
+    CONTROL_LOOKUP,
+    CONTROL_PRIOR,
     GUARDED,
     HEAD_PENALTY,
     HEAD_PENALTY_PICKED,
@@ -62,6 +65,10 @@ LABEL_STYLES: dict[str, tuple[str, str | tuple]] = {
     BC_TRAINED: ("#88CCEE", (0, (5, 2, 1, 2))),  # cyan, dash-dot: ours trained with the BC proxies (not in the paper)
     BEYOND_POSTERIOR: ("#661100", "-"),  # dark brown, solid: the adapter beyond the paper
     BEYOND_GUARDED: ("#CC6677", (0, (4, 2))),  # rose, dashes: the same adapter, its fine-tuning guarded
+    # The posterior's information-parity controls: colours and dashes of their own.
+    CONTROL_LOOKUP: ("#5D3A9B", (0, (1, 1))),  # deep violet, dense dots
+    CONTROL_COUNTS: ("#DDAA33", (0, (10, 2, 2, 2, 2, 2))),  # gold, very long dash, two dots
+    CONTROL_PRIOR: ("#004488", (0, (6, 2, 2, 2))),  # dark blue, long dash-short dash
 }
 OTHER_STYLE: tuple[str, str | tuple] = ("#117733", (0, (1, 3)))  # any label not listed: Tol's green, sparse dots
 TASK_COLOURS = {"train": "0.8", "test": "#E69F00"}  # the paper's grey and orange bars (orange: Okabe-Ito)

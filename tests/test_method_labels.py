@@ -48,3 +48,12 @@ def test_figures_and_the_report_read_the_labels_from_the_registry() -> None:
     assert set(paper.LABEL_NAMES) == set(methods.LABELS)
     assert len(set(methods.LABELS)) == len(methods.LABELS)
     assert set(methods.EXTENSIONS) < set(methods.LABELS) and methods.PAPER_METHOD not in methods.EXTENSIONS
+
+
+@pytest.mark.parametrize("game", GAMES)
+def test_the_adapters_behind_each_label_are_those_its_plan_settings_choose(game: str) -> None:
+    plan = yaml.safe_load(config_file(f"plan_{game}.yaml").read_text())
+    for label, variant in plan.get("adapt_variants", {}).items():
+        settings = variant["settings"]
+        chosen = (settings.get("head_init", "fresh"), *(["guard"] if settings.get("guard") else []))
+        assert methods.ADAPTED_BY.get(label, ("fresh",)) == chosen, label

@@ -5,20 +5,29 @@ The records themselves (names, what each uses, old spellings, `choose`) are
 import only `rllib_conv.common`), the configs and the server's argument checks read them
 without loading a network. This module is the adaptation package's door to them: it binds
 each name to the code that runs it (`IMPLEMENTED_BY`) and checks a choice against a trained
-ego (`check_trained_ego`) and against what the game lets the ego observe (`check_information`);
+ego (`check_trained_ego`), against what the game lets the ego observe (`check_information`) and
+against what the game offers (`check_game`: a convention key, a planner, simultaneous moves);
 the adapt pipeline imports them from here.
 """
 
 from __future__ import annotations
 
-from rllib_conv.adaptation import convention_posterior, fine_tune_guard, head_pick
+from typing import Any
+
+from pettingzoo import ParallelEnv
+
+from rllib_conv.adaptation import context_lookup, convention_posterior, counts_planner, fine_tune_guard, head_pick, prior_planner
 from rllib_conv.common.adapters import (
     ADAPTERS,
+    CONTROLS,
+    COUNTS_PLANNER,
     FRESH,
     GUARD,
+    LOOKUP,
     OLD_SPELLINGS,
     PICK,
     POSTERIOR,
+    PRIOR_PLANNER,
     Adapter,
     StartName,
     Surface,
@@ -29,22 +38,28 @@ from rllib_conv.common.adapters import (
     names,
 )
 from rllib_conv.common.methods import Method
-from rllib_conv.envs.registry import game
+from rllib_conv.envs.best_response import best_response
+from rllib_conv.envs.registry import game, make
 
 __all__ = [
     "ADAPTERS",
+    "CONTROLS",
+    "COUNTS_PLANNER",
     "FRESH",
     "GUARD",
     "IMPLEMENTED_BY",
+    "LOOKUP",
     "OLD_SPELLINGS",
     "PICK",
     "POSTERIOR",
+    "PRIOR_PLANNER",
     "Adapter",
     "StartName",
     "Surface",
     "Uses",
     "adapter",
     "canonical",
+    "check_game",
     "check_information",
     "check_trained_ego",
     "choose",
@@ -56,7 +71,25 @@ IMPLEMENTED_BY = {
     PICK: head_pick.pick_head,
     POSTERIOR: convention_posterior.ConventionPosterior,
     GUARD: fine_tune_guard.FineTuneGuard,
+    LOOKUP: context_lookup.ContextLookup,
+    COUNTS_PLANNER: counts_planner.CountsPlanner,
+    PRIOR_PLANNER: prior_planner.PriorPlanner,
 }
+
+
+def check_game(start: str, game_name: str, env_config: dict[str, Any], ego_agent: str) -> None:
+    """ValueError unless the game has what adapter `start` needs of it (`Adapter.needs_game`) for an ego in seat `ego_agent`."""
+    record, name = game(game_name), canonical(start)
+    for need in adapter(start).needs_game:
+        if need == "convention_key" and record.convention_key is None:
+            raise ValueError(f"head_init {name!r} looks moves up by situation, but {game_name!r} has no convention key")
+        if need == "best_response" and best_response(game_name, env_config, ego_agent) is None:
+            raise ValueError(f"head_init {name!r} plans a best response, but {game_name!r} has no planner for seat {ego_agent!r}")
+        if need == "simultaneous" and not isinstance(make(game_name, **env_config), ParallelEnv):
+            raise ValueError(
+                f"head_init {name!r} keys the partner's moves by the ego's observation of the same step, but in {game_name!r} "
+                "the seats take turns"
+            )
 
 
 def check_information(start: str, game_name: str, surface: Surface = "adapt") -> None:

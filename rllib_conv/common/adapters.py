@@ -27,6 +27,15 @@ FRESH = "fresh"
 PICK = "pick"
 POSTERIOR = "posterior"
 GUARD = "guard"
+# Information-parity controls of the posterior: what it reads, without its Bayes (issue 45).
+LOOKUP = "lookup"
+COUNTS_PLANNER = "counts-planner"
+PRIOR_PLANNER = "prior-planner"
+CONTROLS = (LOOKUP, COUNTS_PLANNER, PRIOR_PLANNER)
+
+# What a game must have for an adapter (`Adapter.needs_game`): its record's convention key, a best-response
+# planner for the ego's seat, or simultaneous moves (a parallel env: each step's situation is one both seats see).
+GameNeed = Literal["convention_key", "best_response", "simultaneous"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -71,6 +80,8 @@ class Adapter:
     module: str
     # For a guard: the starts it may be combined with.
     guards: tuple[str, ...] = ()
+    # What the game must have for it (`GameNeed`); a game without is refused before anything runs.
+    needs_game: tuple[GameNeed, ...] = ()
 
 
 ADAPTERS: dict[str, Adapter] = {
@@ -129,6 +140,41 @@ ADAPTERS: dict[str, Adapter] = {
             uses={"adapt": Uses(returns=True)},
             module="rllib_conv/adaptation/fine_tune_guard.py",
             guards=(FRESH, POSTERIOR),
+        ),
+        Adapter(
+            name=LOOKUP,
+            title="control: per situation, the partner's most played move once seen there, else the trained task module's "
+            "marginal (the posterior's evidence without its Bayes)",
+            in_paper=False,
+            role="start",
+            needs_partner_heads=False,
+            # The partner's moves keyed by the ego's own observation of the step (never the partner's); no returns: the
+            # trained ego's task logits, frozen, play the unseen situations.
+            uses={"adapt": Uses(partner_actions=True, situation_keys=True)},
+            module="rllib_conv/adaptation/context_lookup.py",
+            needs_game=("convention_key", "simultaneous"),
+        ),
+        Adapter(
+            name=COUNTS_PLANNER,
+            title="control: the posterior's planner against a partner model learned only from the new partner's moves "
+            "(counts per situation, Laplace prior)",
+            in_paper=False,
+            role="start",
+            needs_partner_heads=False,
+            # The partner's situation follows from the ego's own observation and move by the game's rules (the planner's).
+            uses={"adapt": Uses(partner_actions=True, game_model=True)},
+            module="rllib_conv/adaptation/counts_planner.py",
+            needs_game=("best_response",),
+        ),
+        Adapter(
+            name=PRIOR_PLANNER,
+            title="control: the posterior's planner against the posterior's prior over the training partners, never updated",
+            in_paper=False,
+            role="start",
+            needs_partner_heads=False,
+            uses={"adapt": Uses(training_policies=True, game_model=True)},
+            module="rllib_conv/adaptation/prior_planner.py",
+            needs_game=("best_response",),
         ),
     )
 }

@@ -14,6 +14,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
+from rllib_conv.common import adapters
+
 TaskLogits = Literal["learned", "oracle", "unused"]
 Output = Literal["task", "network"]
 
@@ -157,10 +159,36 @@ BC_TRAINED = f"{PAPER_METHOD}-bc"  # ours trained with Overcooked's BC proxies, 
 GUARDED = f"{PAPER_METHOD}-guarded"  # ours, its fine-tuning guarded (not in the paper; Hanabi's plan)
 BEYOND_POSTERIOR = "beyond-posterior"  # ours' egos adapting by the convention posterior (not in the paper)
 BEYOND_GUARDED = "beyond-guarded"  # the same, its fine-tuning guarded (not in the paper)
+# The posterior's information-parity controls (not in the paper; `common.adapters.CONTROLS`).
+CONTROL_LOOKUP = "control-lookup"  # bandit: the partner's arm per seen context, else the task marginal
+CONTROL_COUNTS = "control-counts-planner"  # blocks: the planner against a model of the partner's own moves
+CONTROL_PRIOR = "control-prior-planner"  # blocks: the planner against the posterior's prior, frozen
+CONTROL_LABELS: tuple[str, ...] = (CONTROL_LOOKUP, CONTROL_COUNTS, CONTROL_PRIOR)
+# The adapters (`common.adapters`) behind each shipped label that adapts by more than the paper's fresh head (the
+# report's "information used"; every other label adapts by the fresh head): the shipped plans' settings, checked by a test.
+ADAPTED_BY: dict[str, tuple[str, ...]] = {
+    GUARDED: (adapters.FRESH, adapters.GUARD),
+    PICKED: (adapters.PICK,),
+    HEAD_PENALTY_PICKED: (adapters.PICK,),
+    BEYOND_POSTERIOR: (adapters.POSTERIOR,),
+    BEYOND_GUARDED: (adapters.POSTERIOR, adapters.GUARD),
+    CONTROL_LOOKUP: (adapters.LOOKUP,),
+    CONTROL_COUNTS: (adapters.COUNTS_PLANNER,),
+    CONTROL_PRIOR: (adapters.PRIOR_PLANNER,),
+}
 SCRATCH = "scratch"  # adapting a fresh network (seeded as ours)
 PPO_BC = "ppo_bc"  # BaselineAgg trained with Overcooked's BC proxies: Carroll et al.'s PPO_BC, their human-aware agent
 BASELINES: tuple[str, ...] = ("agg", "no_task_logits", "maml")  # the paper's baselines, by method name
 # Variants beyond the paper's: the reports list them apart from the paper's claims.
-EXTENSIONS: tuple[str, ...] = (HEAD_PENALTY, PICKED, HEAD_PENALTY_PICKED, GUARDED, BC_TRAINED, BEYOND_POSTERIOR, BEYOND_GUARDED)
+EXTENSIONS: tuple[str, ...] = (
+    HEAD_PENALTY,
+    PICKED,
+    HEAD_PENALTY_PICKED,
+    GUARDED,
+    BC_TRAINED,
+    BEYOND_POSTERIOR,
+    BEYOND_GUARDED,
+    *CONTROL_LABELS,
+)
 # Every label of the shipped plans, in the order figures and tables show them.
 LABELS: tuple[str, ...] = (LAM0, LAM03, PAPER_METHOD, *EXTENSIONS, LOW_Z, *BASELINES, PPO_BC, "oracle", SCRATCH)

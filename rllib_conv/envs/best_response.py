@@ -39,6 +39,11 @@ class BestResponse(Protocol):
     def plan(self, predict: np.ndarray) -> Plan:
         """The ego's best response to a partner that plays `predict[s]` ([S, A]) in situation s."""
 
+    def follows(self, observation: np.ndarray, action: int) -> int | None:
+        """The partner's situation (an index into `situations`) that the ego's `action` in its own `observation` leads to,
+        by the game's rules; None where the partner does not move next. An adapter that learns a partner model from the
+        partner's moves keys them by it, from the ego's side alone (`envs.seen_moves`)."""
+
 
 def best_response(env_name: str, env_config: dict[str, Any], ego_agent: str) -> BestResponse | None:
     """The best-response planner of `env_name` for an ego playing `ego_agent`, or None if the game has none."""

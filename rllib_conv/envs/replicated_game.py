@@ -27,6 +27,7 @@ from __future__ import annotations
 from typing import Any
 
 import gymnasium as gym
+import numpy as np
 from ray.rllib.env.multi_agent_env import MultiAgentEnv
 
 from rllib_conv.common.seeds import game_seed
@@ -116,6 +117,17 @@ class ReplicatedGame(MultiAgentEnv):
         """
         moves, self._moves = self._moves, [0] * len(self.copies)
         return moves
+
+    def record_seen_moves(self, egos: list[str]) -> None:
+        """From now on keep, per copy r, the other seats' moves as seat `egos[r]` sees them (`envs.seen_moves`)."""
+        if len(egos) != len(self.copies):
+            raise ValueError(f"{len(egos)} ego seats for {len(self.copies)} copies")
+        for env, ego in zip(self.copies, egos):
+            env.record_seen_moves(ego)
+
+    def take_seen_moves(self) -> list[tuple[np.ndarray, np.ndarray, np.ndarray] | None]:
+        """Per copy: the moves kept since the last call (`SeenMoves.take`), None where none."""
+        return [env.take_seen_moves() for env in self.copies]
 
     def get_rng_state(self) -> list[dict | None]:
         """Every copy's game RNG state, for exact resumes."""

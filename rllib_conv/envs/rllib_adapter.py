@@ -7,6 +7,8 @@ observation's `action_mask`, else from `info["action_mask"]`, else all ones.
 AEC games are stepped one agent at a time: each RLlib step carries the observation of
 the agent to move next, and an agent's reward is the AEC cumulative reward since its
 own last move, so nothing is lost when the other player's move ends the game.
+Asked to (`record_seen_moves`), it keeps the other seats' moves as one seat sees them
+(`envs.seen_moves`: what the information-parity controls of adaptation learn from).
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from ray.rllib.env.multi_agent_env import MultiAgentEnv
 from ray.tune.registry import register_env
 
 from rllib_conv.envs import registry
+from rllib_conv.envs.seen_moves import SeenMoves
 from rllib_conv.envs.spaces import MASK_KEY, OBS_KEY
 
 RLLIB_OBS_KEY = "observations"
@@ -40,6 +43,7 @@ class PettingZooMultiAgentEnv(MultiAgentEnv):
         super().__init__()
         self.env = env
         self.is_aec = isinstance(env, AECEnv)
+        self._seen: SeenMoves | None = None  # `record_seen_moves`
         if not self.is_aec and not isinstance(env, ParallelEnv):
             raise TypeError(f"expected a PettingZoo AECEnv or ParallelEnv, got {type(env).__name__}")
         self.possible_agents = list(env.possible_agents)
@@ -109,19 +113,49 @@ class PettingZooMultiAgentEnv(MultiAgentEnv):
             agent = self.env.agent_selection
             info = self.env.infos.get(agent, {})
             self.agents = list(self.env.agents)
-            return {agent: self._convert(agent, self.env.observe(agent), info)}, {agent: info}
+            return self._seen_start({agent: self._convert(agent, self.env.observe(agent), info)}), {agent: info}
         obs, infos = self.env.reset(seed=seed, options=options)
         self.agents = list(self.env.agents)
-        return {a: self._convert(a, o, infos.get(a)) for a, o in obs.items()}, infos
+        return self._seen_start({a: self._convert(a, o, infos.get(a)) for a, o in obs.items()}), infos
+
+    def record_seen_moves(self, ego: str) -> None:
+        """From now on keep the other seats' moves as seat `ego` sees them (`envs.seen_moves`), until `take_seen_moves`."""
+        self._seen = SeenMoves(ego)
+
+    def take_seen_moves(self) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """The moves kept since the last call (`SeenMoves.take`); None if none or not recording."""
+        return self._seen.take() if self._seen is not None else None
+
+    def _seen_start(self, obs: dict[str, dict[str, np.ndarray]]) -> dict[str, dict[str, np.ndarray]]:
+        seen = self._seen
+        if seen is not None:
+            seen.start()
+            self._seen_obs(obs)
+        return obs
+
+    def _seen_obs(self, obs: dict[str, dict[str, np.ndarray]]) -> None:
+        seen = self._seen
+        if seen is not None:
+            for agent, o in obs.items():
+                seen.saw(agent, o[RLLIB_OBS_KEY])
+
+    def _seen_moves(self, actions: dict[str, Any]) -> None:
+        seen = self._seen
+        if seen is not None:  # the ego's own move first: in a simultaneous step the partner's is recorded beside it
+            for agent in sorted(actions, key=lambda a: a != seen.ego):
+                seen.moved(agent, actions[agent])
 
     def step(self, action_dict: dict[str, Any]) -> tuple[dict, dict, dict, dict, dict]:
         if not self.is_aec:
+            self._seen_moves(action_dict)
             obs, rewards, terms, truncs, infos = self.env.step(action_dict)
             obs = {a: self._convert(a, o, infos.get(a)) for a, o in obs.items()}
+            self._seen_obs(obs)
             return obs, rewards, *self._mark_all_done(dict(terms), dict(truncs)), infos
         agent = self.env.agent_selection
         if agent not in action_dict:
             raise ValueError(f"it is {agent}'s turn but the action dict has only {sorted(action_dict)}")
+        self._seen_moves({agent: action_dict[agent]})
         self.env.step(action_dict[agent])
         obs, rewards, terms, truncs, infos = {}, {}, {}, {}, {}
         # Collect the next mover's observation; finished agents get their final
@@ -136,6 +170,7 @@ class PettingZooMultiAgentEnv(MultiAgentEnv):
                 self.env.step(None)
             else:
                 break
+        self._seen_obs(obs)
         return obs, rewards, *self._mark_all_done(terms, truncs), infos
 
     def _mark_all_done(self, terms: dict, truncs: dict) -> tuple[dict, dict]:

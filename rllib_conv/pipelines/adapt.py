@@ -12,7 +12,13 @@ moves in those env steps feed a posterior over which training partner's conventi
 follows; the ego is evaluated playing by it (`convention_posterior.PosteriorPlayer`: on
 blocks, the best response to its prediction of the partner), and once one known
 convention is near certain the ego starts again from the trained ego with that partner's
-head, which PPO fine-tunes from there. With `guard: true` (either of the two above) the ego
+head, which PPO fine-tunes from there. The posterior's information-parity controls
+(`head_init` lookup, counts-planner, prior-planner; `common.adapters.CONTROLS`) learn of the
+new partner only from its moves in those env steps as the ego's seat sees them
+(`envs.seen_moves`: the ego's own observation and move, then the partner's action) and are
+evaluated playing by them, the trained ego's task module alone where they have no move;
+PPO still trains the fresh head beside them, so every curve spends the same env steps, but
+they never play it. With `guard: true` (fresh or posterior) the ego
 is evaluated as it was before any update until the adapting one is measured better on its
 own training rollouts (`fine_tune_guard`); the rows then say whether the prior was kept.
 
@@ -39,6 +45,7 @@ import pandas as pd
 from ray import tune
 
 from rllib_conv import envs, partners
+from rllib_conv.adaptation.context_lookup import ContextLookup
 from rllib_conv.adaptation.convention_posterior import (
     ConventionPosterior,
     KnownConventions,
@@ -46,9 +53,22 @@ from rllib_conv.adaptation.convention_posterior import (
     known_conventions,
     require_action_probs,
 )
+from rllib_conv.adaptation.counts_planner import CountsPlanner
 from rllib_conv.adaptation.fine_tune_guard import FineTuneGuard
 from rllib_conv.adaptation.head_pick import HeadPick, pick_head
-from rllib_conv.adaptation.registry import FRESH, PICK, POSTERIOR, adapter, check_information, check_trained_ego
+from rllib_conv.adaptation.prior_planner import PriorPlanner
+from rllib_conv.adaptation.registry import (
+    CONTROLS,
+    FRESH,
+    LOOKUP,
+    PICK,
+    POSTERIOR,
+    PRIOR_PLANNER,
+    adapter,
+    check_game,
+    check_information,
+    check_trained_ego,
+)
 from rllib_conv.common.atomic_files import replaced_atomically
 from rllib_conv.common.config_files import Checked
 from rllib_conv.common.methods import method
@@ -62,7 +82,7 @@ from rllib_conv.training.algorithm import Replica, build_algorithm, packing_key
 from rllib_conv.training.callbacks import STEPS_DONE, STEPS_TOTAL
 from rllib_conv.training.checkpoints import last_checkpoint
 from rllib_conv.training.ego_setup import EgoSetup, setup_for
-from rllib_conv.training.evaluate import check_episodes, ego_head_partner, load_module, player_return
+from rllib_conv.training.evaluate import check_episodes, ego_head_partner, ego_task_partner, load_module, player_return
 from rllib_conv.training.experiment import ExperimentConfig, trial_config
 from rllib_conv.training.replica_export import copy_replica, replica_module
 from rllib_conv.training.replica_steps import replica_env_steps
@@ -102,7 +122,7 @@ def adapt_curve(cfg: AdaptConfig, run: str, partner: str) -> Curve:
     check_trained_ego(cfg.head_init, method(trained.method), repr(str(trial)))
     check_information(cfg.head_init, game)
     if adapter(cfg.head_init).uses["adapt"].training_policies:
-        require_action_probs(partners.get(trained.population), "head_init 'posterior'")
+        require_action_probs(partners.get(trained.population), f"head_init {cfg.head_init!r}")
     every, _, episodes = protocol(cfg, trained)
     check_episodes(episodes, game, trained.env_config)
     defaults = envs.game(game).adapt_defaults(trained.ppo.rollout_per_partner)
@@ -133,7 +153,9 @@ def adapt_curve(cfg: AdaptConfig, run: str, partner: str) -> Curve:
         "seed": trained.seed,
         "partner": partner,
     }
-    return Curve(run, partner, setup_for(exp, pop, [entry]), load, trained, label)
+    setup = setup_for(exp, pop, [entry])
+    check_game(cfg.head_init, game, setup.env_config, setup.ego_agent)
+    return Curve(run, partner, setup, load, trained, label)
 
 
 def protocol(cfg: AdaptConfig, trained: ExperimentConfig) -> tuple[int, int, int]:
@@ -171,6 +193,8 @@ class AdaptTrainable(AlgorithmTrainable):
         self._trained: dict[str, Any] = {}  # run -> its trained ego, loaded once for all its curves
         if self.cfg.head_init == POSTERIOR:
             self._start_posteriors()
+        if self.cfg.head_init in CONTROLS:
+            self._start_controls()
         if self.cfg.guard:
             self._start_guards()
 
@@ -241,6 +265,35 @@ class AdaptTrainable(AlgorithmTrainable):
                 heads[r], tasks[r] = trained[self.picked[r]].state_dict(), trained[TASK_ID].state_dict()
         self._load_new_heads(heads, tasks)
 
+    def _start_controls(self) -> None:
+        """Per curve: its control, knowing nothing of the new partner yet; the ego's seat records the partner's moves from now on."""
+        s, self.controls = self.cfg.posterior, []
+        for c in self.curves:
+            game, env_config, ego = c.setup.population.env, c.setup.env_config, c.setup.ego_agent
+            if self.cfg.head_init == LOOKUP:
+                self.controls.append(ContextLookup(envs.convention_key(game)))
+                continue
+            planner = envs.best_response(game, env_config, ego)
+            if self.cfg.head_init == PRIOR_PLANNER:
+                models = [e.build() for e in partners.get(c.trained.population).entries("train")]
+                self.controls.append(PriorPlanner(planner, models, s.recombined, s.novel, s.epsilon))
+            else:
+                self.controls.append(CountsPlanner(planner))
+        egos = [c.setup.ego_agent for c in self.curves]
+        self.algo.env_runner_group.foreach_env_runner(
+            lambda runner: [env.unwrapped.record_seen_moves(egos) for env in runner.env.envs], local_env_runner=True
+        )
+
+    def _update_controls(self) -> None:
+        """Give each curve's control the new partner's moves of the last update, as the ego's seat saw them."""
+        for per_env in self.algo.env_runner_group.foreach_env_runner(
+            lambda runner: [env.unwrapped.take_seen_moves() for env in runner.env.envs], local_env_runner=True
+        ):
+            for per_copy in per_env:
+                for control, seen in zip(self.controls, per_copy):
+                    if seen is not None:
+                        control.observe(*seen)
+
     def _load_new_heads(self, states: dict[int, dict[str, Any]], tasks: dict[int, dict[str, Any]] | None = None) -> None:
         """Start replica r's new head from `states[r]` (a plain head's state dict) and its task module from `tasks[r]`, everywhere."""
         if not states:
@@ -259,6 +312,8 @@ class AdaptTrainable(AlgorithmTrainable):
         """The ego of curve r as it is evaluated: its new head (or, guarded and not yet trusted, the ego before any update), or the posterior player around it."""
         if self.cfg.guard and not self.guards[r].trusted:
             plain = self.prior[r]  # not yet measured better than the ego before any update
+        if self.cfg.head_init in CONTROLS:  # the trained ego's task module alone where the control has no move
+            return self.controls[r].player(head_id, ego_task_partner(self._trained_ego(self.curves[r].run)))
         adapting = ego_head_partner(plain, head_id)  # `player_return` seeds every player it plays
         if self.cfg.head_init != POSTERIOR:
             return adapting
@@ -342,6 +397,8 @@ class AdaptTrainable(AlgorithmTrainable):
             with self.timings.measure("evaluate"):
                 if self.cfg.head_init == POSTERIOR:
                     self._update_posteriors()
+                if self.cfg.head_init in CONTROLS:
+                    self._update_controls()
                 if self.cfg.guard:
                     self._update_guards()
             self.steps = [self.offset[r] + replica_env_steps(result, r) for r in range(len(self.curves))]

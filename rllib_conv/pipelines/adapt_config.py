@@ -59,7 +59,10 @@ class AdaptConfig(Strict):
     `rllib_conv.adaptation.convention_posterior`). `guard: true` (not in the paper; with
     `head_init` fresh or posterior) evaluates the ego as it was before any update until the
     adapting one is measured better on its own training rollouts, by `guard_z` standard
-    errors (`rllib_conv.adaptation.fine_tune_guard`).
+    errors (`rllib_conv.adaptation.fine_tune_guard`). `head_init` lookup, counts-planner and
+    prior-planner (not in the paper) are the posterior's information-parity controls
+    (`rllib_conv.common.adapters.CONTROLS`): they play by the new partner's moves as the ego's
+    seat saw them (or, prior-planner, by the training partners alone), never by PPO's head.
     """
 
     name: FolderName = Field("adapt", description="name of the output CSV and Tune experiment")
@@ -74,8 +77,9 @@ class AdaptConfig(Strict):
     head_init: StartName = Field(
         FRESH,
         description="pick: first try the fresh head and every training partner's head on the new partner, adapt from the best; "
-        "posterior: adapt the fresh head and play by a posterior over which training partner's convention the new partner follows "
-        "(both not in the paper)",
+        "posterior: adapt the fresh head and play by a posterior over which training partner's convention the new partner follows; "
+        "lookup, counts-planner, prior-planner: the posterior's information-parity controls (docs/adapting.md) "
+        "(all not in the paper)",
     )
     pick_steps: PositiveInt | None = Field(None, description="env steps spent picking the head (default: one update's worth)")
     posterior: PosteriorSettings = Field(
@@ -129,6 +133,12 @@ class AdaptConfig(Strict):
             raise ValueError(f"pick_steps is set but head_init is {self.head_init!r}; set head_init: pick to use it")
         if self.guard and self.head_init not in adapter(GUARD).guards:
             raise ValueError(
-                "guard: true compares the adapting ego with the ego before any update, but head_init 'pick' replaces that ego after it; use head_init fresh or posterior"
+                "guard: true compares the adapting ego with the ego before any update, but "
+                + (
+                    "head_init 'pick' replaces that ego after it"
+                    if self.head_init == PICK
+                    else f"head_init {self.head_init!r} never plays the adapting ego"
+                )
+                + f"; use head_init {' or '.join(adapter(GUARD).guards)}"
             )
         return self

@@ -26,7 +26,7 @@ from typing import Any
 from pydantic import Field, NonNegativeFloat, PositiveInt, ValidationError, model_validator
 
 from rllib_conv import envs
-from rllib_conv.adaptation.registry import FRESH, check_information
+from rllib_conv.adaptation.registry import FRESH, check_game, check_information
 from rllib_conv.common import config_files
 from rllib_conv.common.config_files import Strict
 from rllib_conv.common.resources import available, config_file
@@ -288,7 +288,10 @@ def plan_for(
         )
     for label in scale.adapt_variants:
         try:
-            check_information(adapt_variants[label].settings.get("head_init", FRESH), game)
+            start = adapt_variants[label].settings.get("head_init", FRESH)
+            check_information(start, game)
+            # The ego's seat of every built-in population; `rllib-conv adapt` checks each curve's own seat again.
+            check_game(start, game, {}, "player_0")
         except ValueError as exc:
             raise ValueError(f"plan file {str(source)!r}: adapt_variants.{label}: {exc}") from None
     if seeds is None:

@@ -48,6 +48,15 @@ def ego_head_partner(module: ConventionMultiRLModule, head_id: str, seed: int = 
     return PolicyPartner(head_id, logits, greedy=False, seed=seed, memo=True)
 
 
+def ego_task_partner(module: ConventionMultiRLModule, seed: int = 0) -> PolicyPartner:
+    """The ego's task module alone (its logits, no head: its estimate of the population's marginal) as a sampling `Partner`."""
+
+    def logits(obs: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+        return module.task.policy(obs, mask).logits
+
+    return PolicyPartner("task", logits, greedy=False, seed=seed, memo=True)
+
+
 def check_episodes(episodes: int, env_name: str, env_config: dict[str, Any]) -> None:
     """ValueError unless `episodes` can score this game: 0 (no sampled episodes) only where the game has an exact return."""
     if episodes == 0 and envs.game(env_name).exact_return is None:

@@ -14,7 +14,9 @@ import numpy as np
 import pytest
 
 from rllib_conv import envs
-from rllib_conv.adaptation.registry import ADAPTERS, check_information
+from rllib_conv.adaptation.registry import ADAPTERS, CONTROLS, check_information
+from rllib_conv.envs.blocks.env import HIDDEN, decode_observations
+from rllib_conv.envs.rllib_adapter import PettingZooMultiAgentEnv
 from rllib_conv.pipelines.plans import GAMES as PLAN_GAMES
 from rllib_conv.pipelines.plans import plan_for, shipped_plan
 from rllib_conv.play.room import GAMES as STUDY_GAMES
@@ -118,3 +120,25 @@ def test_a_plan_asking_for_the_posterior_on_hanabi_is_refused_before_it_runs(tmp
         ValueError, match=r"plan\.yaml.*adapt_variants\.modular-lam0\.5-guarded: head_init 'posterior' .* the ego's own hand"
     ):
         plan_for("hanabi", path=tmp_path / "plan.yaml")
+
+
+def test_the_posteriors_controls_never_receive_the_partners_observation() -> None:
+    # Declared: none reads the partner's situation (so each is allowed in every game that has what it needs).
+    for name in CONTROLS:
+        assert not ADAPTERS[name].uses["adapt"].partner_situation, name
+    # Done: what the game copies record for them holds only the ego's own observations. On blocks P2's observation hides
+    # the goal and P1's shows it, so a recorded partner observation would be seen.
+    env, rng = PettingZooMultiAgentEnv(envs.make("blocks")), np.random.default_rng(0)
+    env.record_seen_moves(EGO)
+    ego_views = set()
+    for episode in range(30):
+        observations, _ = env.reset(seed=episode)
+        while env.env.agents:
+            agent = env.env.agent_selection
+            if agent == EGO:
+                ego_views.add(observations[EGO]["observations"].tobytes())
+            observations, *_ = env.step({agent: int(rng.integers(6))})
+    recorded, _, moves = env.take_seen_moves()
+    assert len(moves) == 30 * 3
+    assert {o.tobytes() for o in recorded} <= ego_views
+    assert not (decode_observations(recorded)["goal"] == HIDDEN).any()

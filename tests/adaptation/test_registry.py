@@ -30,7 +30,8 @@ def test_every_adapter_names_files_that_exist_and_the_code_bound_to_it_lives_the
 
 
 def test_adapt_and_play_offer_the_vocabularys_starts() -> None:
-    assert list(typing.get_args(adapters.StartName)) == adapters.names(role="start") == ["fresh", "pick", "posterior"]
+    assert list(typing.get_args(adapters.StartName)) == adapters.names(role="start")
+    assert adapters.names(role="start") == ["fresh", "pick", "posterior", "lookup", "counts-planner", "prior-planner"]
     assert AdaptConfig.model_fields["head_init"].default == adapters.FRESH
     for start in adapters.names(role="start"):
         assert AdaptConfig(runs=["r"], head_init=start).head_init == start
@@ -57,7 +58,10 @@ def test_the_old_spelling_table_is_the_fresh_adapter_in_the_server() -> None:
         ValueError, match=r"--adapter must be one of \['fresh', 'posterior'\] \(or the old spelling 'table'\), got 'pick'"
     ):
         build_settings(agents=["pilot=oracle"], adapter="pick")  # an adapter of `adapt` only
-    with pytest.raises(ValueError, match="unknown adapter 'bayes'; adapters: fresh, pick, posterior, guard"):
+    with pytest.raises(
+        ValueError,
+        match="unknown adapter 'bayes'; adapters: fresh, pick, posterior, guard, lookup, counts-planner, prior-planner",
+    ):
         adapters.adapter("bayes")
 
 
@@ -75,6 +79,10 @@ def test_what_each_adapter_uses_is_stated_per_surface() -> None:
     ]
     assert "returns" not in uses["posterior"]["play"]
     assert uses["guard"] == {"adapt": ["returns"]}
+    # The controls: the posterior's evidence without its Bayes, its planner without its evidence; none reads the returns.
+    assert uses["lookup"] == {"adapt": ["partner_actions", "situation_keys"]}
+    assert uses["counts-planner"] == {"adapt": ["partner_actions", "game_model"]}
+    assert uses["prior-planner"] == {"adapt": ["training_policies", "game_model"]}
     assert [a.name for a in adapters.ADAPTERS.values() if a.in_paper] == ["fresh"]
 
 

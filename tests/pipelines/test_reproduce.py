@@ -64,6 +64,8 @@ def test_blocks_plan_adapts_ours_from_a_picked_head_and_by_the_plain_and_guarded
         ("modular-lam0.5-hl0.01-pick", "modular-lam0.5-hl0.01", {"head_init": "pick"}),
         ("beyond-posterior", "modular-lam0.5", {"head_init": "posterior"}),
         ("beyond-guarded", "modular-lam0.5", {"head_init": "posterior", "guard": True}),
+        ("control-counts-planner", "modular-lam0.5", {"head_init": "counts-planner"}),
+        ("control-prior-planner", "modular-lam0.5", {"head_init": "prior-planner"}),
     ]
     # The posterior and the guarded posterior run where the partner sees nothing the ego does not (not on Hanabi,
     # which guards the paper's adapter instead); picking only on blocks.
@@ -71,6 +73,7 @@ def test_blocks_plan_adapts_ours_from_a_picked_head_and_by_the_plain_and_guarded
         ("scratch", {"method": "scratch"}),
         ("beyond-posterior", {"head_init": "posterior"}),
         ("beyond-guarded", {"head_init": "posterior", "guard": True}),
+        ("control-lookup", {"head_init": "lookup"}),
     ]
     assert [(v.label, v.settings) for v in plan_for("hanabi").adapt_variants][1:] == [("modular-lam0.5-guarded", {"guard": True})]
     # Adapt-only variants train nothing; each runs where its base egos are in the (narrowed) plan.
@@ -81,7 +84,14 @@ def test_blocks_plan_adapts_ours_from_a_picked_head_and_by_the_plain_and_guarded
         *(
             f"{p}__{v}"
             for p in ("blocks-perm", "blocks-selfplay-p1")
-            for v in ("scratch", "modular-lam0.5-pick", "beyond-posterior", "beyond-guarded")
+            for v in (
+                "scratch",
+                "modular-lam0.5-pick",
+                "beyond-posterior",
+                "beyond-guarded",
+                "control-counts-planner",
+                "control-prior-planner",
+            )
         ),
     ]
     full = Reproduction(plan_for("blocks"), Path("unused")).stage_experiments("adapt")

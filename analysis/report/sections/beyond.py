@@ -9,7 +9,11 @@ Their targets (the project's, not the paper's), each judged on paired seed-level
 - user-study partners: above every other method;
 - blocks, self-play partners: above BaselineAgg and First-Order MAML; hand-designed partners: no worse
   than ours λ=0.5 by more than the plan's `no_worse_margin` (the paired interval wholly above −margin);
-- Hanabi: above ours λ=0.5 and BaselineAgg.
+- Hanabi: above ours λ=0.5 and BaselineAgg;
+- and, where they were run, above each of its information-parity controls (`methods.CONTROL_LABELS`: on
+  the bandit the lookup of the partner's arm; on blocks the planner against the partner's counted moves
+  and against the frozen prior), which use no more than it does: what the posterior adds is judged
+  against what its information gives without its Bayes.
 """
 
 from __future__ import annotations
@@ -26,7 +30,7 @@ from analysis.report.formatting import digits, fmt_summary, md_table
 from analysis.report.verdicts import NOT_SHOWN, Difference, Judgement, advantage, beats_every, no_worse, no_worse_margin
 from analysis.summaries import adaptation_auc, mean_ci, seed_summary, uniform_prior_return, unit_means
 from rllib_conv.common import adapters
-from rllib_conv.common.methods import BEYOND_GUARDED, BEYOND_POSTERIOR, PAPER_METHOD
+from rllib_conv.common.methods import ADAPTED_BY, BEYOND_GUARDED, BEYOND_POSTERIOR, CONTROL_LABELS, PAPER_METHOD
 
 POSTERIOR = BEYOND_POSTERIOR
 GUARDED = BEYOND_GUARDED  # the posterior with its fine-tuning guarded (adaptation/fine_tune_guard.py)
@@ -34,7 +38,7 @@ BEYOND = (POSTERIOR, GUARDED)
 WITHIN = ("partner",)
 BAYES_MARGIN = 0.01
 BANDIT_CONTEXTS = 4
-SHOWN_BESIDE = (PAPER_METHOD, "agg", "maml", "oracle")  # drawn beside the posterior
+SHOWN_BESIDE = (PAPER_METHOD, "agg", "maml", "oracle", *CONTROL_LABELS)  # drawn beside the posterior
 
 
 def symmetric_contexts(population: str) -> int | None:
@@ -81,9 +85,18 @@ def _target(ctx: Context, population: str, auc: pd.DataFrame, label: str) -> tup
     return None
 
 
+def control_targets(auc: pd.DataFrame, label: str, places: int) -> list[tuple[str, str, str]]:
+    """(target, verdict, evidence) of adapter `label` against each information-parity control run beside it: above it."""
+    found = []
+    for control in [c for c in CONTROL_LABELS if c in set(auc["label"])]:
+        judged = beats_every(auc, label, (control,), "auc", WITHIN, places)
+        found.append((f"above its control: {label_name(control)}", judged.cell, judged.evidence))
+    return found
+
+
 def information_used(label: str) -> str:
     """What the adapter behind a row reads besides the trained ego (`rllib_conv.common.adapters`), for the table."""
-    names = {POSTERIOR: [adapters.POSTERIOR], GUARDED: [adapters.POSTERIOR, adapters.GUARD]}.get(label, [adapters.FRESH])
+    names = ADAPTED_BY.get(label, (adapters.FRESH,))
     used = dict.fromkeys(name for a in names for name in adapters.adapter(a).uses["adapt"].names())
     return ", ".join(used).replace("_", " ")
 
@@ -107,6 +120,17 @@ def beyond_section(ctx: Context) -> str:
             "",
             f"`{GUARDED}` is the same adapter with its fine-tuning guarded: the ego is evaluated as it was before any update "
             f"until the adapting one is measured better on its own training rollouts (`{adapters.adapter(adapters.GUARD).module}`).",
+        ]
+    controls = [c for c in CONTROL_LABELS if c in set(ctx.adaptation["label"])]
+    if controls:
+        lines += [
+            "",
+            "Its information-parity controls, beside it where run: "
+            + "; ".join(
+                f"`{c}`, {adapters.adapter(ADAPTED_BY[c][0]).title} (`{adapters.adapter(ADAPTED_BY[c][0]).module}`)"
+                for c in controls
+            )
+            + ". Each reads no more than the posterior (the table's last column); the posterior's targets include beating each.",
         ]
     data = ctx.adaptation[
         ctx.adaptation["population"].isin(ctx.adaptation.loc[ctx.adaptation["label"].isin(present), "population"].unique())
@@ -149,6 +173,8 @@ def beyond_section(ctx: Context) -> str:
             found = _target(ctx, population, here, label)
             if found is not None:
                 targets.append([population_name(population), label_name(label), *found])
+            for control in control_targets(here, label, digits(ctx.game_of_population(population))):
+                targets.append([population_name(population), label_name(label), *control])
     lines += ["", "### Targets", ""]
     if not targets:
         # Targets are declared before a run (this module's docstring); none is made up afterwards.

@@ -79,6 +79,13 @@ class BlocksBestResponse:
     def situations(self) -> tuple[np.ndarray, np.ndarray]:
         return self._situations, np.ones((len(self._situations), NUM_ACTIONS), dtype=np.int8)
 
+    def follows(self, observation: np.ndarray, action: int) -> int | None:
+        seen = decode_observation(observation)
+        if HIDDEN in seen["goal"] or seen["move"] + 1 not in P2_MOVES:
+            return None  # not P1's observation, or no P2 move follows
+        grid = apply_move(np.asarray(seen["grid"]), RED, int(action))
+        return P2_MOVES.index(seen["move"] + 1) * len(self.grids) + self.index[tuple(grid)]
+
     def plan(self, predict: np.ndarray) -> BlocksPlan:
         predict = np.asarray(predict, dtype=np.float64).reshape(len(P2_MOVES), len(self.grids), NUM_ACTIONS)
         value, moves = self.rewards, {}

@@ -1,0 +1,49 @@
+"""The ego playing a best-response plan (`envs.best_response.Plan`), with another player where the plan has no move.
+
+The planner controls of the convention posterior (`counts_planner`, `prior_planner`) play
+the plan of the game's exact planner against their own partner model, as the posterior
+plays its plan against its prediction; where the plan has no move (not the planning seat's
+turn), or its move is not legal, `fallback` plays.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from rllib_conv.envs.best_response import Plan
+from rllib_conv.partners.base import Partner
+
+
+class PlanPlayer(Partner):
+    """Plays `plan`'s move wherever it has a legal one, else `fallback`'s; the plan never changes while it plays."""
+
+    kind = "plan"
+
+    def __init__(self, name: str, plan: Plan, fallback: Partner) -> None:
+        super().__init__(name)
+        self.plan, self.fallback = plan, fallback
+
+    def planned(self, observation: np.ndarray, action_mask: np.ndarray) -> int | None:
+        """The plan's move in `observation` if it has a legal one, else None."""
+        action = self.plan.act(np.asarray(observation))
+        return action if action is not None and action_mask[action] else None
+
+    def act(self, observation: np.ndarray, action_mask: np.ndarray) -> int:
+        planned = self.planned(observation, action_mask)
+        return self.fallback.act(observation, action_mask) if planned is None else planned
+
+    def action_probs(self, observations: np.ndarray, action_masks: np.ndarray) -> np.ndarray:
+        out = np.array(self.fallback.action_probs(observations, action_masks), dtype=np.float64)
+        for b, (obs, mask) in enumerate(zip(np.asarray(observations), np.asarray(action_masks))):
+            planned = self.planned(obs, mask)
+            if planned is not None:
+                out[b] = np.eye(out.shape[1])[planned]
+        return out
+
+    def seed(self, seed: int | None) -> None:
+        self.fallback.seed(seed)
+
+    def params(self) -> dict[str, Any]:
+        return {"fallback": self.fallback.name}
