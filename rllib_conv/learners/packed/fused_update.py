@@ -7,7 +7,8 @@ batch (RLlib's learner connector, or `rollout_train_batch` for the batched sampl
 `Rollout`s), slices its tensors by `CyclicMinibatchPlan` (RLlib's minibatch order and
 shuffles), computes `ppo_loss` for every replica and head of a packed ego at once (a
 `StackedEgoMultiRLModule`: one [K, H, B] forward) plus the subclass's terms on the stack
-(`stack_terms`, e.g. the marginal regulariser), and clips and steps every optimizer with one
+(`stack_terms`, e.g. the marginal regulariser; on plain modules such as self-play seats
+`plain_terms`, e.g. MEP's population entropy), and clips and steps every optimizer with one
 `FusedAdamStep`. Metrics are logged once per update.
 
 This is the one update that trains. RLlib's own loop is kept only as the reference it is
