@@ -29,6 +29,10 @@ def test_sampling_and_shuffling_draw_from_the_seed_shifted_by_one_and_two() -> N
     assert seeds.shuffle_seed(3, "ego_p0") == 3489046244
     # The shift keeps a module's shuffling apart from its initial weights (same name, same seed).
     assert seeds.shuffle_seed(0, "ego_p0") != seeds.stream_seed(0, "ego_p0")
+    # A seat's own sampling (pairs trained together, MEP): stream of its module ID from seed + 1.
+    assert seeds.module_sampling_seed(0, "seat@player_0") == 2677621752 == seeds.stream_seed(1, "seat@player_0")
+    assert seeds.module_sampling_seed(3, "seat@player_0") == 2680621761
+    assert seeds.module_sampling_seed(0, "seat@player_0") != seeds.stream_seed(0, "seat@player_0")
 
 
 def test_game_seeds_are_the_replica_seed_mixed_with_the_offset() -> None:

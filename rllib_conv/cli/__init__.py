@@ -24,9 +24,11 @@ from rllib_conv.cli import commands
 from rllib_conv.cli.arguments import (
     ADAPT_SET_KEYS,
     EXIT_USAGE,
+    GENERATOR_KEYS,
     ZEROSHOT_SET_KEYS,
     Parser,
     described,
+    keys_help,
     log_arg,
     positive_int,
     run_args,
@@ -39,6 +41,7 @@ from rllib_conv.common.config_files import describe
 from rllib_conv.pipelines.adapt_config import AdaptConfig
 from rllib_conv.pipelines.evaluate_config import EvaluateConfig
 from rllib_conv.pipelines.pair_config import SEAT_SYNTAX, PairConfig
+from rllib_conv.pipelines.selfplay_config import SelfPlayConfig
 from rllib_conv.pipelines.zeroshot_config import ZeroShotConfig
 
 __all__ = ["ADAPT_SET_KEYS", "EXIT_INTERRUPTED", "EXIT_USAGE", "ZEROSHOT_SET_KEYS", "build_parser", "main"]
@@ -93,7 +96,12 @@ def _partners(sub: Any, command: Callable[..., argparse.ArgumentParser]) -> None
     q = command("show", "list a population's members: name (for --partner), split, kind, params", commands.partners_show, psub)
     q.add_argument("population", metavar="NAME", help="a built-in population name, a manifest file or a population folder")
     q = command(
-        "train", "train a self-play population from a YAML (see tune_configs/selfplay_*.yaml)", commands.partners_train, psub
+        "train",
+        "train a self-play population from a YAML (see tune_configs/selfplay_*.yaml)",
+        commands.partners_train,
+        psub,
+        epilog=keys_help(SelfPlayConfig, GENERATOR_KEYS, "partner generators (YAML keys, or --set KEY=VALUE):"),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     q.add_argument("config", help="self-play YAML (see tune_configs/selfplay_*.yaml)")
     q.add_argument("--out", default="populations", help="folder for the population (default: populations)")

@@ -2,13 +2,15 @@
 
 An option that sets a config key shows that key's description in the pipeline's schema
 (`described`), and `adapt --help` / `zeroshot --help` list the keys no option sets
-(`set_help`), so a default or a meaning is written once, in the schema.
+(`set_help`), and `partners train --help` the partner generators' keys (`keys_help`), so a
+default or a meaning is written once, in the schema.
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Sequence
 from typing import NoReturn
 
 from pydantic import BaseModel
@@ -37,9 +39,19 @@ def described(schema: type[BaseModel], key: str) -> str:
 
 def set_help(schema: type[BaseModel], options: dict[str, str]) -> str:
     """An epilog listing the `--set` keys of a command that no option sets, described by the schema."""
-    keys = {k: described(schema, k) for k in schema.model_fields if k not in options and k not in PER_TRIAL}
-    width = max(map(len, keys))
-    return "--set keys besides the options:\n" + "\n".join(f"  {k.ljust(width)}  {v}" for k, v in keys.items())
+    keys = [k for k in schema.model_fields if k not in options and k not in PER_TRIAL]
+    return keys_help(schema, keys, "--set keys besides the options:")
+
+
+def keys_help(schema: type[BaseModel], keys: Sequence[str], title: str) -> str:
+    """An epilog: `title`, then each of `keys` with its description in the schema."""
+    described_keys = {k: described(schema, k) for k in keys}
+    width = max(map(len, described_keys))
+    return title + "\n" + "\n".join(f"  {k.ljust(width)}  {v}" for k, v in described_keys.items())
+
+
+# The self-play keys that make a population one of the field's partner generators (`partners train --help`).
+GENERATOR_KEYS = ("fcp", "population_entropy")
 
 
 ADAPT_SET_KEYS = {k: described(AdaptConfig, k) for k in AdaptConfig.model_fields if k not in ADAPT_OPTIONS and k not in PER_TRIAL}

@@ -12,8 +12,9 @@ site:
   `s` and `s + 1` apart for every name.
 - **Shifted streams.** A stream that is keyed by a module ID already used for that module's
   initial weights draws from `s + offset` instead, so the two never coincide:
-  `s + 1` for the env runners' action sampling (`sampling_seed`), `s + 2` for the
-  learner's minibatch shuffling (`shuffle_seed`).
+  `s + 1` for the env runners' action sampling (`sampling_seed`; per module, for the seats
+  of pairs trained together, `module_sampling_seed`), `s + 2` for the learner's minibatch
+  shuffling (`shuffle_seed`).
 - **Game seeds.** Sub-environment `offset` of a replica seeded `s` resets with
   `(s * 1_000_003 + offset) mod (2**31 - 1)` (`game_seed`), so replicas packed into one
   env never share a game.
@@ -55,6 +56,11 @@ def stream_seed(seed: int, name: str) -> int:
 def sampling_seed(seed: int) -> int:
     """The seed of a replica's action sampling in the env runners (stream "explore" of `seed + 1`)."""
     return stream_seed(int(seed) + SAMPLING_OFFSET, "explore")
+
+
+def module_sampling_seed(seed: int, module_id: str) -> int:
+    """The seed of module `module_id`'s own action sampling in a run seeded `seed` (stream `module_id` of `seed + 1`)."""
+    return stream_seed(int(seed) + SAMPLING_OFFSET, module_id)
 
 
 def shuffle_seed(seed: int, module_id: str) -> int:

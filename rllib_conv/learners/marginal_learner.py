@@ -25,6 +25,11 @@ Settings come from `config.learners(learner_config_dict=...)`, the fields of
 - `shuffle_seeds` (module ID -> seed): each module's own minibatch-shuffling generator.
 - `head_l2` (float, default 0; not in the paper): weight of the head penalty H
   (`head_penalty.head_size`) on every ego head's own output. H is always logged.
+- `population_entropy` (float alpha, default 0; not in the paper) and `populations` (name ->
+  module IDs): MEP's bonus for plain modules (self-play seats of several pairs trained
+  together): `- alpha * PE` per population, PE the entropy of the members' mean policy
+  (`population_entropy.population_entropy`) on every member's rows of the minibatch. PE is
+  always logged, as `population_entropy/<name>`.
 
 Optimizers: the stack has one Adam per group (task, the task's z layers when scaled, heads);
 gradients are clipped per replica (task) and per replica head, as each would be alone.
@@ -36,14 +41,24 @@ from __future__ import annotations
 from typing import Any
 
 import torch
+from ray.rllib.core.columns import Columns
 
 from rllib_conv.learners.head_penalty import head_size
 from rllib_conv.learners.packed.fused_update import HEADS_OPTIMIZER, TASK_OPTIMIZER, Z_OPTIMIZER, FusedUpdateLearner
+from rllib_conv.learners.population_entropy import population_entropy
 from rllib_conv.learners.regulariser import marginal_distance
 from rllib_conv.modules.packed.stacked_multi import STACK_ID, HeadView, StackedOutput
 
 MARGINAL_REG_KEY = "marginal_reg"
 HEAD_L2_KEY = "head_l2"
+POPULATION_ENTROPY_KEY = "population_entropy"
+
+
+def _cat_obs(parts: list) -> object:
+    """Observations of several modules' rows as one batch (tensors, or dicts of them: our games' masked observations)."""
+    if isinstance(parts[0], dict):
+        return {key: torch.cat([p[key] for p in parts]) for key in parts[0]}
+    return torch.cat(parts)
 
 
 class MarginalPPOLearner(FusedUpdateLearner):
@@ -83,6 +98,35 @@ class MarginalPPOLearner(FusedUpdateLearner):
         if self.head_l2 > 0:
             loss[HEAD_L2_KEY] = self.head_l2 * terms[HEAD_L2_KEY].sum()
         return loss
+
+    # --- MEP's population entropy (plain modules) ----------------------------------------------------------
+
+    @property
+    def alpha(self) -> float:
+        """The population entropy's weight."""
+        return float(self.settings.population_entropy)
+
+    def plain_terms(self, minibatch: dict[str, dict]) -> dict[str, torch.Tensor]:
+        """PE of each population on this minibatch: every member's policy on all the members' rows (with gradient when weighted)."""
+        terms = {}
+        with torch.set_grad_enabled(self.alpha > 0 and torch.is_grad_enabled()):
+            for name, members in self.settings.populations.items():
+                present = [mid for mid in members if mid in minibatch]
+                if not present:
+                    continue
+                obs = {Columns.OBS: _cat_obs([minibatch[mid][Columns.OBS] for mid in present])}
+                logits = torch.stack([self.module[mid].forward_train(obs)[Columns.ACTION_DIST_INPUTS] for mid in members])
+                terms[f"{POPULATION_ENTROPY_KEY}/{name}"] = population_entropy(logits)
+        return terms
+
+    def plain_loss(self, terms: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+        """- alpha * sum of every population's PE (a bonus: higher entropy of the mean policy, lower loss)."""
+        return {POPULATION_ENTROPY_KEY: -self.alpha * sum(terms.values())} if self.alpha > 0 and terms else {}
+
+    @property
+    def loss_reads_plain_terms(self) -> bool:
+        """PE enters the loss only when weighted."""
+        return self.alpha > 0
 
     # --- optimizers and freezing ---------------------------------------------------------------------
 

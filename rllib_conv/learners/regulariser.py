@@ -23,12 +23,19 @@ def masked_mean(x: torch.Tensor, valid: torch.Tensor, dims: int) -> torch.Tensor
     return (x * valid).sum(axes) / valid.sum(axes).clamp(min=1)
 
 
+def mean_policy(logits: torch.Tensor, dim: int = -3) -> torch.Tensor:
+    """The mean of several policies' action probabilities: softmax of `logits` averaged over `dim` (the policies' axis).
+
+    The regulariser's average partner policy; MEP's population policy (`population_entropy`).
+    """
+    return torch.softmax(logits, dim=-1).mean(dim=dim)
+
+
 def marginal_distance(task_logits: torch.Tensor, head_logits: torch.Tensor, valid: torch.Tensor | None = None) -> torch.Tensor:
     """D per ego: mean over rows of sum_a |softmax(task) - mean_i softmax(head_i)|.
 
     `task_logits` [..., N, A], `head_logits` (the policies' logits, task logits included)
     [..., H, N, A], `valid` [..., N] (default all rows): returns [...].
     """
-    mean_policy = torch.softmax(head_logits, dim=-1).mean(dim=-3)
-    per_row = (torch.softmax(task_logits, dim=-1) - mean_policy).abs().sum(dim=-1)
+    per_row = (torch.softmax(task_logits, dim=-1) - mean_policy(head_logits)).abs().sum(dim=-1)
     return per_row.mean(-1) if valid is None else masked_mean(per_row, valid.to(per_row.dtype), 1)

@@ -22,7 +22,16 @@ class LearnerSettings:
     # Module ID -> seed of the generator shuffling its minibatches (packed replicas shuffle
     # as each would alone); modules without one shuffle with NumPy's global RNG, as RLlib does.
     shuffle_seeds: dict[str, int] = field(default_factory=dict)
+    # MEP (not in the paper): weight alpha of the population entropy, and the populations whose mean
+    # policy it is taken of (name -> module IDs of the members' policies for one seat).
+    population_entropy: float = 0.0
+    populations: dict[str, list[str]] = field(default_factory=dict)
 
     def config_dict(self) -> dict[str, Any]:
         """The `learner_config_dict` that carries these settings to every learner."""
-        return {**asdict(self), "freeze": list(self.freeze), "shuffle_seeds": dict(self.shuffle_seeds)}
+        return {
+            **asdict(self),
+            "freeze": list(self.freeze),
+            "shuffle_seeds": dict(self.shuffle_seeds),
+            "populations": {name: list(ids) for name, ids in self.populations.items()},
+        }

@@ -9,7 +9,9 @@ With `oracle` set in `model_config` (`{"env": ..., "env_config": ...}`) the task
 logits are replaced by the true marginals: 0 on optimal actions, the float minimum
 elsewhere (the paper's "oracle" curve). With `init_seed` the initial weights come from a
 generator of their own, so a module starts the same whichever other modules are built
-beside it (replicas packed into one algorithm start as each would alone).
+beside it (replicas packed into one algorithm start as each would alone). With
+`sample_seed` the actions it samples while exploring come from a generator of its own too
+(self-play seats of several pairs in one algorithm, MEP: each explores as it would alone).
 """
 
 from __future__ import annotations
@@ -46,7 +48,7 @@ class TaskModule(TorchRLModule, ValueFunctionAPI):
     """Shared task module: observation -> (z, task logits), and a task value.
 
     `model_config` keys: `hidden` (layer size), `z_dim` (latent size, default = hidden),
-    `oracle` and `init_seed` (optional, see the module docstring).
+    `oracle`, `init_seed` and `sample_seed` (optional, see the module docstring).
     """
 
     def setup(self) -> None:
@@ -60,6 +62,8 @@ class TaskModule(TorchRLModule, ValueFunctionAPI):
         self.pi_tower = mlp([obs_dim, hidden, self.z_dim], final_relu=True, generator=g)
         self.pi_out = mlp([self.z_dim, num_actions], out_gain=0.01, generator=g)
         self.vf = mlp([obs_dim, hidden, hidden, 1], out_gain=1.0, generator=g)
+        # Not an attribute torch would save: its state travels with the RNG state (`training.rng_state`).
+        self.sampler = seeded_generator(cfg.get("sample_seed"))
         self._oracle = None
         if cfg.get("oracle"):
             self._oracle = oracle_for(cfg["oracle"]["env"], cfg["oracle"].get("env_config", {}))
@@ -81,6 +85,16 @@ class TaskModule(TorchRLModule, ValueFunctionAPI):
     def _forward(self, batch: dict[str, Any], **kwargs) -> dict[str, Any]:
         obs, mask = split_obs(batch)
         return {Columns.ACTION_DIST_INPUTS: self.policy(obs, mask).logits}
+
+    def _forward_exploration(self, batch: dict[str, Any], **kwargs) -> dict[str, Any]:
+        out = self._forward(batch)
+        if self.sampler is None:
+            return out  # RLlib (or the batched runner) draws from torch's global RNG
+        logits = out[Columns.ACTION_DIST_INPUTS]
+        # As the packed ego draws (`StackedEgoMultiRLModule`): a categorical sample from this module's generator.
+        actions = torch.multinomial(torch.softmax(logits, dim=-1), 1, generator=self.sampler).squeeze(-1)
+        logp = (logits - logits.logsumexp(dim=-1, keepdim=True)).gather(-1, actions.unsqueeze(-1)).squeeze(-1)
+        return {**out, Columns.ACTIONS: actions, Columns.ACTION_LOGP: logp}
 
     def compute_values(self, batch: dict[str, Any], embeddings: Any = None) -> torch.Tensor:
         return self.value(split_obs(batch)[0])

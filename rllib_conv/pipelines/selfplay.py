@@ -17,6 +17,16 @@ partner seat before training and at every gate check (`fcp/` in its trial folder
 check's score); a passing pair adds the snapshot before training (`<name>-init`) and the one
 whose score is nearest half its final score (`<name>-mid`, FCP's "past checkpoint") to the
 population, in the pair's split, beside the final seat (`<name>`).
+
+With `population_entropy` (Maximum-Entropy Population, Zhao et al., AAAI 2023) the pairs of
+each split are one trial: one algorithm on a `ReplicatedGame` (a copy of the game per pair),
+pair k of the split with its own seat modules (`seat@player_0#k`) and everything random
+seeded from its own seed (initial weights, exploration, games, minibatch shuffles), so with
+alpha 0 each pair trains exactly as it would in a population of one. The learner adds
+`-alpha * PE` per seat, PE the entropy of the pairs' mean policy for that seat
+(`learners.population_entropy`). The trial stops when one gate check sees every pair
+clear the gate and the full evaluation confirms it, or when the budget is spent; the pairs
+then export one by one, as separate pairs do.
 """
 
 from __future__ import annotations
@@ -46,16 +56,18 @@ from rllib_conv.common.run_folders import (
     SELFPLAY_TRIAL_FILE,
 )
 from rllib_conv.common.sealed import seal, verify
-from rllib_conv.common.seeds import pair_seed, stream_seed
+from rllib_conv.common.seeds import module_sampling_seed, pair_seed, shuffle_seed, stream_seed
+from rllib_conv.envs.replicated_game import ReplicatedGame, replicated_env_config
 from rllib_conv.envs.rllib_adapter import PettingZooMultiAgentEnv, RLlibGame, game_env_config
 from rllib_conv.learners.marginal_learner import MarginalPPOLearner
 from rllib_conv.learners.settings import LearnerSettings
+from rllib_conv.modules.multi import REPLICA_SEPARATOR, replica_id
 from rllib_conv.modules.task_module import TaskModule
 from rllib_conv.partners.episodes import play_episodes
 from rllib_conv.partners.population import PartnerEntry, Population
 from rllib_conv.partners.trained import PolicyPartner
 from rllib_conv.pipelines.selfplay_config import SelfPlayConfig
-from rllib_conv.training.algorithm import base_ppo_config
+from rllib_conv.training.algorithm import BASE_SEED, base_ppo_config
 from rllib_conv.training.callbacks import STEPS_DONE, STEPS_TOTAL
 from rllib_conv.training.stage import Stage, fit_stage
 from rllib_conv.training.trainable import AlgorithmTrainable
@@ -65,19 +77,44 @@ SEAT_PREFIX = "seat@"
 SHARED_SEAT = "seat@all"
 
 
-def seat_module_id(cfg: SelfPlayConfig, agent: str) -> str:
-    """Module ID of the policy playing `agent`'s seat."""
-    return SHARED_SEAT if cfg.shared_seats else SEAT_PREFIX + agent
+def seat_module_id(cfg: SelfPlayConfig, agent: str, member: int | None = None) -> str:
+    """Module ID of the policy playing `agent`'s seat (of pair `member` of a split trained together, `seat@player_0#1`)."""
+    return replica_id(SHARED_SEAT if cfg.shared_seats else SEAT_PREFIX + agent, member)
 
 
 class SeatMapping:
-    """Policy mapping for self-play: each seat to its own module, or every seat to one."""
+    """Policy mapping for self-play: each seat to its own module, or every seat to one; `player_0#k` to pair k's."""
 
     def __init__(self, shared: bool) -> None:
         self.shared = shared
 
     def __call__(self, agent_id: str, episode: Any, **kwargs: Any) -> str:
-        return SHARED_SEAT if self.shared else SEAT_PREFIX + agent_id
+        agent, sep, tag = agent_id.rpartition(REPLICA_SEPARATOR)
+        member = int(tag) if sep and tag.isdigit() else None
+        return replica_id(SHARED_SEAT if self.shared else SEAT_PREFIX + (agent if member is not None else agent_id), member)
+
+
+def split_pairs(cfg: SelfPlayConfig, pair: int) -> list[int]:
+    """The pairs the trial of `pair` trains: that pair alone, or with `population_entropy` every pair of its split."""
+    if not cfg.joint:
+        return [pair]
+    if pair < cfg.train_pairs:
+        return list(range(cfg.train_pairs))
+    return list(range(cfg.train_pairs, cfg.train_pairs + cfg.test_pairs))
+
+
+def trial_pairs(cfg: SelfPlayConfig) -> list[int]:
+    """The `pair` of every trial: each pair, or with `population_entropy` the first pair of each split."""
+    if not cfg.joint:
+        return list(range(cfg.train_pairs + cfg.test_pairs))
+    return [0] + ([cfg.train_pairs] if cfg.test_pairs else [])
+
+
+def members(cfg: SelfPlayConfig) -> list[tuple[int | None, int]]:
+    """(member, pair) of every pair the trial of `cfg.pair` trains; member None for a pair trained alone."""
+    if not cfg.joint:
+        return [(None, cfg.pair)]
+    return list(enumerate(split_pairs(cfg, cfg.pair)))
 
 
 def game_agents(cfg: SelfPlayConfig) -> list[str]:
@@ -123,17 +160,60 @@ def build_selfplay_config(cfg: SelfPlayConfig) -> PPOConfig:
     )
 
 
+def build_joint_config(cfg: SelfPlayConfig) -> PPOConfig:
+    """Return the PPOConfig training the pairs of `cfg.pair`'s split together (`population_entropy`, MEP).
+
+    Pair k of the split plays copy k of a `ReplicatedGame` with modules `seat@<agent>#k`,
+    seeded from its own seed alone (see the module docstring); the learner's populations are
+    the pairs' modules of each seat.
+    """
+    env = PettingZooMultiAgentEnv(envs.make(cfg.env, **cfg.env_config))
+    sizes = {"hidden": cfg.model.hidden, "z_dim": cfg.model.z_dim}
+    specs: dict[str, RLModuleSpec] = {}
+    shuffle_seeds: dict[str, int] = {}
+    populations: dict[str, list[str]] = {}
+    pairs, agents = split_pairs(cfg, cfg.pair), game_agents(cfg)
+    for member, pair in enumerate(pairs):
+        seed = pair_seed(cfg.seed, pair)
+        for agent in agents:
+            base, mid = seat_module_id(cfg, agent), seat_module_id(cfg, agent, member)
+            if mid in specs:  # shared seats: one module for both
+                continue
+            specs[mid] = RLModuleSpec(
+                module_class=TaskModule,
+                observation_space=env.observation_spaces[agent],
+                action_space=env.action_spaces[agent],
+                model_config={**sizes, "init_seed": stream_seed(seed, base), "sample_seed": module_sampling_seed(seed, base)},
+            )
+            shuffle_seeds[mid] = shuffle_seed(seed, base)
+            populations.setdefault(base, []).append(mid)
+    settings = LearnerSettings(
+        adam_eps=cfg.ppo.adam_eps,
+        shuffle_seeds=shuffle_seeds,
+        population_entropy=float(cfg.population_entropy or 0.0),
+        populations=populations,
+    )
+    env_config = replicated_env_config(cfg.env, cfg.env_config, [pair_seed(cfg.seed, p) for p in pairs], BASE_SEED)
+    return (
+        base_ppo_config(ReplicatedGame, env_config, cfg.ppo, cfg.run, BASE_SEED, cfg.ppo.rollout_per_partner)
+        .multi_agent(policies=list(specs), policy_mapping_fn=SeatMapping(cfg.shared_seats), policies_to_train=list(specs))
+        .rl_module(rl_module_spec=MultiRLModuleSpec(rl_module_specs=specs))
+        .learners(learner_class=MarginalPPOLearner, learner_config_dict=settings.config_dict())
+    )
+
+
 def seat_partner(module: Any, module_id: str, greedy: bool, seed: int = 0) -> PolicyPartner:
     """The seat policy `module_id` of a (multi-)module as a `Partner`."""
     policy = module[module_id]
     return PolicyPartner(module_id, lambda obs, mask: policy.policy(obs, mask).logits, greedy, seed)
 
 
-def selfplay_score(module: Any, cfg: SelfPlayConfig, episodes: int, seed: int) -> float:
-    """Mean self-play score of the pair's seat policies, acting as fixed partners would (`envs.make_scored`)."""
+def selfplay_score(module: Any, cfg: SelfPlayConfig, episodes: int, seed: int, member: int | None = None) -> float:
+    """Mean self-play score of the pair's (pair `member`'s) seat policies, acting as fixed partners would (`envs.make_scored`)."""
     env = envs.make_scored(cfg.env, **cfg.env_config)
     seats = {
-        a: seat_partner(module, seat_module_id(cfg, a), cfg.greedy_partners, seed + i) for i, a in enumerate(env.possible_agents)
+        a: seat_partner(module, seat_module_id(cfg, a, member), cfg.greedy_partners, seed + i)
+        for i, a in enumerate(env.possible_agents)
     }
     return float(play_episodes(env, seats, episodes, seed).mean())
 
@@ -170,12 +250,15 @@ def fcp_members(snapshots: list[dict[str, Any]], final_score: float) -> dict[str
 
 
 class SelfPlayTrainable(AlgorithmTrainable):
-    """One self-play pair: trains until it passes the score gate or its step budget runs out."""
+    """One self-play pair, or a split's pairs trained together (MEP): trains until they pass the score gate or the step budget runs out."""
 
     def build(self, config: dict[str, Any]) -> None:
         self.cfg = SelfPlayConfig.model_validate(config).resolve()
-        self.algo = build_selfplay_config(self.cfg).build_algo()
-        self.passed, self.score, self.steps_to_gate = False, math.nan, None
+        self.members = members(self.cfg)
+        self.algo = (build_joint_config if self.cfg.joint else build_selfplay_config)(self.cfg).build_algo()
+        self.passed = {pair: False for _, pair in self.members}
+        self.score = {pair: math.nan for _, pair in self.members}
+        self.steps_to_gate: int | None = None
         self._start = time.perf_counter()
         if self.cfg.fcp and not fcp_snapshots(self.trial_folder):  # a restored pair keeps the snapshots it took
             score = selfplay_score(self.algo.env_runner.module, self.cfg, self.cfg.gate.check_episodes, seed=100_000)
@@ -206,28 +289,56 @@ class SelfPlayTrainable(AlgorithmTrainable):
         module = self.algo.env_runner.module
         iteration = self.iteration + 1
         if iteration % gate.check_every == 0 or budget_spent:
-            out["gate_check"] = selfplay_score(module, cfg, gate.check_episodes, seed=100_000 + iteration)
+            # Every pair must clear the check at once: the scores kept are those of the weights exported.
+            out["gate_check"] = min(
+                selfplay_score(module, cfg, gate.check_episodes, seed=100_000 + iteration, member=m) for m, _ in self.members
+            )
             if cfg.fcp:
                 self._snapshot(iteration, steps, out["gate_check"])
             if out["gate_check"] >= gate.score or budget_spent:
-                self.score = selfplay_score(module, cfg, gate.episodes, seed=pair_seed(cfg.seed, cfg.pair))
-                self.passed = self.score >= gate.score
-                if self.passed:
+                for m, pair in self.members:
+                    self.score[pair] = selfplay_score(module, cfg, gate.episodes, seed=pair_seed(cfg.seed, pair), member=m)
+                    self.passed[pair] = self.score[pair] >= gate.score
+                if all(self.passed.values()):
                     self.steps_to_gate = steps
-        out.update({"gate_score": self.score, "passed": self.passed, "done": self.passed or budget_spent})
+        passed = all(self.passed.values())
+        out.update({"gate_score": min(self.score.values()), "passed": passed, "done": passed or budget_spent})
         if out["done"]:
-            report = {
-                "pair": cfg.pair,
-                "seed": pair_seed(cfg.seed, cfg.pair),
-                "passed": self.passed,
-                "score": self.score,
-                "steps_to_gate": self.steps_to_gate,
-                "env_steps": steps,
-                "wall_s": time.perf_counter() - self._start,
-            }
-            (self.trial_folder / SELFPLAY_TRIAL_FILE).write_text(json.dumps(report, indent=2) + "\n")
-            out.update({k: v for k, v in report.items() if k not in out})
+            wall_s = time.perf_counter() - self._start
+            reports = [
+                {
+                    "pair": pair,
+                    **({} if m is None else {"member": m}),
+                    "seed": pair_seed(cfg.seed, pair),
+                    "passed": self.passed[pair],
+                    "score": self.score[pair],
+                    # A pair trained with others reaches the gate when all of them do.
+                    "steps_to_gate": self.steps_to_gate if self.passed[pair] else None,
+                    "env_steps": steps,
+                    "wall_s": wall_s,
+                }
+                for m, pair in self.members
+            ]
+            # One pair: its report; pairs trained together: the list of theirs.
+            written = reports if cfg.joint else reports[0]
+            (self.trial_folder / SELFPLAY_TRIAL_FILE).write_text(json.dumps(written, indent=2) + "\n")
+            out.update({k: v for k, v in reports[0].items() if k not in out})
         return out
+
+
+def _pair_reports(cfg: SelfPlayConfig, results: tune.ResultGrid) -> list[tuple[Any, dict[str, Any]]]:
+    """(trial result, pair report) of every pair, in pair order; a trial that wrote no report fails each of its pairs."""
+    out = []
+    for r in results:
+        report_path = Path(r.path) / SELFPLAY_TRIAL_FILE
+        if report_path.is_file():
+            written = json.loads(report_path.read_text())
+            reports = written if isinstance(written, list) else [written]
+        else:
+            pairs = split_pairs(cfg, r.config["pair"])
+            reports = [{"pair": p, "passed": False, "error": str(r.error)} for p in pairs]
+        out.extend((r, report) for report in reports)
+    return sorted(out, key=lambda item: item[1]["pair"])
 
 
 def write_population(cfg: SelfPlayConfig, results: tune.ResultGrid, folder: Path) -> tuple[Population, pd.DataFrame]:
@@ -235,23 +346,17 @@ def write_population(cfg: SelfPlayConfig, results: tune.ResultGrid, folder: Path
     agents = game_agents(cfg)
     counterpart_agent = next(a for a in agents if a != cfg.partner_agent)
     rows, entries = [], []
-    for r in sorted(results, key=lambda r: r.config["pair"]):
-        pair = r.config["pair"]
+    for r, report in _pair_reports(cfg, results):
+        pair = report["pair"]
         name = f"sp{pair:02d}"
         split = "train" if pair < cfg.train_pairs else "test"
-        report_path = Path(r.path) / SELFPLAY_TRIAL_FILE
-        report = (
-            json.loads(report_path.read_text())
-            if report_path.is_file()
-            else {"pair": pair, "passed": False, "error": str(r.error)}
-        )
         rows.append({"partner": name, "split": split, **report})
         if not report.get("passed") or r.checkpoint is None:
             continue
         verify(r.checkpoint.path)
         modules = Path(r.checkpoint.path) / RL_MODULE_DIR
         for sub, agent in (("partners", cfg.partner_agent), ("counterparts", counterpart_agent)):
-            seal(shutil.copytree(modules / seat_module_id(cfg, agent), folder / sub / name))
+            seal(shutil.copytree(modules / seat_module_id(cfg, agent, report.get("member")), folder / sub / name))
         params = {"greedy": cfg.greedy_partners, "seed": report["seed"]}
         trial = Path(r.path)
         for tag, snap in fcp_members(fcp_snapshots(trial), report["score"]).items():
@@ -290,7 +395,8 @@ def write_population(cfg: SelfPlayConfig, results: tune.ResultGrid, folder: Path
         env_config=cfg.env_config,
         partner_agent=cfg.partner_agent,
         description=f"self-play partners (seat {cfg.partner_agent}), gate {cfg.gate.score} over {cfg.gate.episodes} episodes"
-        + (", with each pair's start and midpoint (Fictitious Co-Play)" if cfg.fcp else ""),
+        + (", with each pair's start and midpoint (Fictitious Co-Play)" if cfg.fcp else "")
+        + (f", each split's pairs trained together with population entropy {cfg.population_entropy} (MEP)" if cfg.joint else ""),
         partners=entries,
     )
     population.save(folder / POPULATION_FILE)
@@ -321,11 +427,10 @@ def train_population(
     target = Path(out).resolve() / cfg.name
     if target.exists() and not overwrite:
         raise ValueError(f"population folder {str(target)!r} already exists; choose another name or pass --overwrite")
-    pairs = cfg.train_pairs + cfg.test_pairs
     checkpoint = tune.CheckpointConfig(num_to_keep=1, checkpoint_frequency=cfg.run.checkpoint_every, checkpoint_at_end=True)
     stage = Stage(SELFPLAY, SelfPlayTrainable, checkpoint, stops_early="a pair stops when it passes the gate")
-    # One pair a trial: the units need no packing, and the trials' configs are the config with its pair.
-    space = {**raw, "pair": tune.grid_search(list(range(pairs)))}
+    # One pair (or, MEP, one split's pairs) a trial: the units need no packing, and the trials' configs are the config with its pair.
+    space = {**raw, "pair": tune.grid_search(trial_pairs(cfg))}
     results = fit_stage(stage, raw, space, [cfg.name], storage, address, label, loggers)
     target.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f".{cfg.name}.", dir=target.parent))

@@ -2,7 +2,7 @@
 
 An RLlib checkpoint holds weights, optimizer and metrics, but not the games' RNGs, the
 global torch/numpy/random generators, the replicas' own exploration generators (in the
-env runners' `EgoStack`), the learner's per-module shuffling generators nor the partner
+env runners' `EgoStack`, or MEP's seats), the learner's per-module shuffling generators nor the partner
 round robin. Saved beside each checkpoint and restored after it, they make a
 trial killed and resumed from its checkpoint produce the same results as one never
 interrupted, whenever no episode spans the checkpoint (as on the one-step bandit);
@@ -20,6 +20,7 @@ import numpy as np
 import torch
 
 from rllib_conv.modules.packed.stacked_multi import STACK_ID
+from rllib_conv.modules.task_module import TaskModule
 
 RNG_FILE = "rng_state.pkl"
 
@@ -35,9 +36,13 @@ def _set_process_state(state: dict[str, Any]) -> None:
 
 
 def _samplers(runner: Any) -> list[torch.Generator]:
-    """The exploration generators of the runner's stacked ego (none for other modules)."""
+    """The exploration generators of the runner's stacked ego, or of its modules that have one (MEP's seats)."""
     module = runner.module
-    return list(module[STACK_ID].samplers) if module is not None and STACK_ID in module else []
+    if module is None:
+        return []
+    if STACK_ID in module:
+        return list(module[STACK_ID].samplers)
+    return [m.sampler for mid in sorted(module.keys()) if isinstance(m := module[mid], TaskModule) and m.sampler is not None]
 
 
 def _runner_state(runner: Any) -> dict[str, Any]:

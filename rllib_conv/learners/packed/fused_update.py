@@ -7,7 +7,8 @@ batch (RLlib's learner connector, or `rollout_train_batch` for the batched sampl
 `Rollout`s), slices its tensors by `CyclicMinibatchPlan` (RLlib's minibatch order and
 shuffles), computes `ppo_loss` for every replica and head of a packed ego at once (a
 `StackedEgoMultiRLModule`: one [K, H, B] forward) plus the subclass's terms on the stack
-(`stack_terms`, e.g. the marginal regulariser), and clips and steps every optimizer with one
+(`stack_terms`, e.g. the marginal regulariser; on plain modules such as self-play seats
+`plain_terms`, e.g. MEP's population entropy), and clips and steps every optimizer with one
 `FusedAdamStep`. Metrics are logged once per update.
 
 This is the one update that trains. RLlib's own loop is kept only as the reference it is
@@ -108,6 +109,21 @@ class FusedUpdateLearner(PPOTorchLearner):
         When it does not, each minibatch runs every head on its own rows only, and
         `stack_terms` are logged from the update's last minibatch alone.
         """
+        return False
+
+    # --- the subclass's terms on plain modules (self-play seats) ------------------------------------------
+
+    def plain_terms(self, minibatch: dict[str, dict]) -> dict[str, torch.Tensor]:
+        """Scalar terms of one minibatch of plain modules (module ID -> its columns), by metric name; none here."""
+        return {}
+
+    def plain_loss(self, terms: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+        """The loss terms (scalars, by name) made of `plain_terms`' output; none here."""
+        return {}
+
+    @property
+    def loss_reads_plain_terms(self) -> bool:
+        """Whether `plain_loss` needs `plain_terms` with gradients; else they are logged from the update's last minibatch."""
         return False
 
     def _log_stack_terms(self, terms: dict[str, torch.Tensor]) -> None:
@@ -221,7 +237,9 @@ class FusedUpdateLearner(PPOTorchLearner):
     def _plain_epochs(self, data: dict[str, dict], plan: CyclicMinibatchPlan) -> None:
         """The minibatch updates of plain modules (one forward per module, e.g. self-play seats)."""
         settings = {mid: self._ppo_settings(mid) for mid in data}
-        for rows in plan:
+        logged: list[dict[str, torch.Tensor]] = []
+        steps = list(plan)
+        for i, rows in enumerate(steps):
             minibatch = {mid: {c: _take(v, rows[mid]) for c, v in cols.items()} for mid, cols in data.items()}
             fwd_out = self.module.forward_train(minibatch)
             terms = {}
@@ -229,8 +247,17 @@ class FusedUpdateLearner(PPOTorchLearner):
                 out = fwd_out[mid]
                 values = self.module[mid].compute_values(mb, embeddings=out.get(Columns.EMBEDDINGS))
                 terms[mid] = ppo_loss(out[Columns.ACTION_DIST_INPUTS], values, mb[Columns.ACTIONS], mb, **settings[mid])
-            self._backward_and_step(sum(t.total for t in terms.values()))
+            extra = {}
+            if self.loss_reads_plain_terms:
+                extra = self.plain_terms(minibatch)
+                logged.append({key: t.detach() for key, t in extra.items()})
+            elif i == len(steps) - 1:  # terms outside the loss are only logged: from the last minibatch, no gradient
+                with torch.no_grad():
+                    logged.append(self.plain_terms(minibatch))
+            self._backward_and_step(sum(t.total for t in terms.values()) + sum(self.plain_loss(extra).values()))
         self._log_terms(terms)
+        for key in logged[0] if logged else ():
+            self.metrics.log_value((ALL_MODULES, key), torch.stack([step[key] for step in logged]).mean(), reduce="mean")
 
     def _stacked_epochs(self, data: dict[str, dict], plan: CyclicMinibatchPlan) -> None:
         """The minibatch updates of a stacked ego: each minibatch gathered into [K, H, B] tensors, one batched loss."""
@@ -295,6 +322,8 @@ class FusedUpdateLearner(PPOTorchLearner):
     def compute_losses(self, *, fwd_out: dict[str, Any], batch: dict[str, Any]) -> dict[str, Any]:
         shared = fwd_out.pop(STACK_ID, None)  # the stack has no batch and no PPO loss of its own
         losses = super().compute_losses(fwd_out=fwd_out, batch=batch)
+        if not self.stacked and self.loss_reads_plain_terms:
+            losses.update(self.plain_loss(self.plain_terms(batch)))
         if shared is not None:
             terms = self.stack_terms(shared[STACKED])
             self._log_stack_terms({key: t.detach() for key, t in terms.items()})
