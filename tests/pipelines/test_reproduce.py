@@ -250,6 +250,44 @@ def test_quick_reproduction_runs_every_stage_and_builds_the_report(ray_session, 
     assert "train: done before, skipped" in capsys.readouterr().out
 
 
+POOLED_PLAN = """
+game: bandit
+paper_method: modular-lam0.5
+methods:
+  modular-lam0.5: {method: modular, lam: 0.5}
+adapt_variants: {}
+full: &scale
+  populations: {}
+  selfplay:
+    - {name: bandit-s2-selfplay, env_config: {symmetric: 2}, train_pairs: 2, test_pairs: 1, run: {timesteps: 3000},
+       populations: 2}
+  selfplay_methods: [modular-lam0.5]
+  zeroshot_populations: []
+  zeroshot_methods: []
+  adapt_variants: []
+  train_overrides: {run: {timesteps: 1024}}
+  adapt_overrides: {steps: 32, episodes: 0}
+quick: *scale
+"""
+
+
+@pytest.mark.slow
+def test_a_plan_of_two_selfplay_populations_trains_both_and_the_report_pools_them(ray_session, tmp_path) -> None:
+    plan = tmp_path / "plan.yaml"
+    plan.write_text(POOLED_PLAN)
+    out = tmp_path / "repro"
+    assert main(["reproduce", "bandit", "--quick", "--plan", str(plan), "--out", str(out)]) == 0
+    game = out / "bandit"
+    members = ["bandit-s2-selfplay-p0", "bandit-s2-selfplay-p1"]
+    assert json.loads((game / "plan.json").read_text())["population_groups"] == {"bandit-s2-selfplay": members}
+    assert all((game / "adaptation" / f"{m}__modular-lam0.5.csv").is_file() for m in members)
+    report = (out / "report" / "report.md").read_text()
+    assert "`bandit-s2-selfplay` pools 2 independently trained self-play populations" in report
+    # One seed per population: the interval over the two populations' means is the only one there is.
+    summary = next(line for line in report.splitlines() if line.startswith("| Arms 2 (self-play) | ours"))
+    assert "(n=2)" in summary
+
+
 @pytest.mark.slow
 def test_quick_overcooked_reproduction_trains_adapts_to_cooks_and_human_proxies_and_plays_the_anchor(
     ray_session, tmp_path, short_human_cache

@@ -56,6 +56,18 @@ def _take(data: Any, rows: torch.Tensor) -> Any:
     return {k: _take(v, rows) for k, v in data.items()} if isinstance(data, dict) else data.index_select(0, rows)
 
 
+def _cells(idx: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """The advanced index that takes rows `idx` [K, H, B] of every (replica, head) of a [K, H, N, ...] tensor."""
+    k, h, _ = idx.shape
+    return torch.arange(k).view(k, 1, 1), torch.arange(h).view(1, h, 1), idx
+
+
+def _gather(idx: torch.Tensor, obs: torch.Tensor, mask: torch.Tensor | None) -> tuple[torch.Tensor, torch.Tensor | None]:
+    """The minibatch's observations and action masks: rows `idx` of the padded [K, H, N, ...] grids."""
+    cells = _cells(idx)
+    return obs[cells], None if mask is None else mask[cells]
+
+
 class FusedUpdateLearner(PPOTorchLearner):
     """A PPO learner whose `update` is the fused minibatch loop (see the module docstring).
 
@@ -285,30 +297,23 @@ class FusedUpdateLearner(PPOTorchLearner):
         present = torch.zeros((k, h), dtype=torch.bool)
         for r, hh in cell.values():
             present[r, hh] = True
-        kk = torch.arange(k).view(k, 1, 1)
-        hh_ = torch.arange(h).view(1, h, 1)
         settings = self._ppo_settings(next(iter(data)))  # one config for every head of the stack
         logged: list[dict[str, torch.Tensor]] = []
         steps = list(plan)
+        self._fused_step()  # parameters in their flat buffers before the first forward (a compiled loss keeps their layout)
         for i, rows in enumerate(steps):
             b = len(next(iter(rows.values())))
             idx = torch.zeros((k, h, b), dtype=torch.long)
             for mid, r in rows.items():
                 idx[cell[mid]] = r
             valid = present.unsqueeze(-1).expand(k, h, b)
-            mb_obs, mb_mask = obs[kk, hh_, idx], None if mask is None else mask[kk, hh_, idx]
-            stacked = self.module.forward_stacked(mb_obs, mb_mask, valid, all_heads=self.loss_reads_all_heads)
-            mb = {c: t[kk, hh_, idx] for c, t in columns.items()}
-            terms = ppo_loss(stacked.logits, stacked.values, mb[Columns.ACTIONS], mb, valid=valid, **settings)
+            terms, extra, total = self._minibatch_loss(obs, mask, columns, idx, valid, settings)
             if self.loss_reads_all_heads:
-                extra = self.stack_terms(stacked)
                 logged.append({key: t.detach() for key, t in extra.items()})
-            else:
-                extra = {}
-                if i == len(steps) - 1:  # terms outside the loss are only logged: from the last minibatch, no gradient
-                    with torch.no_grad():
-                        logged.append(self.stack_terms(self.module.forward_stacked(mb_obs, mb_mask, valid)))
-            self._backward_and_step(terms.total.sum() + sum(self.stack_loss(extra).values()))
+            elif i == len(steps) - 1:  # terms outside the loss are only logged: from the last minibatch, no gradient
+                with torch.no_grad():
+                    logged.append(self.stack_terms(self.module.forward_stacked(*_gather(idx, obs, mask), valid)))
+            self._backward_and_step(total)
         self._log_terms(
             {
                 mid: PPOLossTerms(*(t[r, hh] for t in (terms.total, terms.policy_loss, terms.vf_loss, terms.entropy)))
@@ -316,6 +321,26 @@ class FusedUpdateLearner(PPOTorchLearner):
             }
         )
         self._log_stack_terms({key: torch.stack([step[key] for step in logged]).mean(0) for key in logged[0]})
+
+    def _minibatch_loss(
+        self,
+        obs: torch.Tensor,
+        mask: torch.Tensor | None,
+        columns: dict[str, torch.Tensor],
+        idx: torch.Tensor,
+        valid: torch.Tensor,
+        settings: dict[str, float],
+    ) -> tuple[PPOLossTerms, dict[str, torch.Tensor], torch.Tensor]:
+        """One minibatch of a stacked ego, rows `idx` [K, H, B] of the padded columns: (PPO terms, stack terms in the loss, total loss).
+
+        Tensors in, tensors out, so that it can be compiled as one graph (`benchmarks/compiled_step.py`).
+        """
+        mb_obs, mb_mask = _gather(idx, obs, mask)
+        stacked = self.module.forward_stacked(mb_obs, mb_mask, valid, all_heads=self.loss_reads_all_heads)
+        mb = {c: t[_cells(idx)] for c, t in columns.items()}
+        terms = ppo_loss(stacked.logits, stacked.values, mb[Columns.ACTIONS], mb, valid=valid, **settings)
+        extra = self.stack_terms(stacked) if self.loss_reads_all_heads else {}
+        return terms, extra, terms.total.sum() + sum(self.stack_loss(extra).values())
 
     # --- RLlib's own loop: the reference the fused update is tested against, never run in training ------------------
 
