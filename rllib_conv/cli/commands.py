@@ -328,13 +328,16 @@ def crossplay(args: argparse.Namespace) -> None:
 
     from rllib_conv import partners
     from rllib_conv.pipelines.crossplay import crossplay as run_crossplay
-    from rllib_conv.pipelines.crossplay import write_crossplay
+    from rllib_conv.pipelines.crossplay import crossplay_gap, write_crossplay
 
     a, b = partners.get(args.a), partners.get(args.b)
     matrix = run_crossplay(a, b, episodes=args.episodes, seed=args.seed)
     csv, png = write_crossplay(matrix, args.out, f"{a.name}__{b.name}")
     with pd.option_context("display.width", 250, "display.float_format", "{:.2f}".format):
         print(matrix.to_string())
+    gap = crossplay_gap(matrix)
+    if gap is not None:
+        print(f"self-play {gap['selfplay']:.3f}, cross-play {gap['crossplay']:.3f}: cross-play gap {gap['gap']:.3f}")
     print(f"wrote {csv} and {png}")
 
 

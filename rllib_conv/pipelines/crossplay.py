@@ -14,6 +14,7 @@ import matplotlib
 
 matplotlib.use("Agg")  # files only; no display on servers and CI
 import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from rllib_conv import envs  # noqa: E402
@@ -57,6 +58,21 @@ def crossplay(a: Population, b: Population, episodes: int = 100, seed: int = 0) 
     matrix.index.name = f"{a.name} ({ego_agent})"
     matrix.columns.name = f"{b.name} ({a.partner_agent})"
     return matrix
+
+
+def crossplay_gap(matrix: pd.DataFrame) -> dict[str, float] | None:
+    """The cross-play gap of a population against itself: mean self-play (diagonal) minus mean cross-play (off-diagonal).
+
+    What a population's conventions cost a player who meets a member it did not train
+    with (the zero-shot coordination literature's "cross-play gap"). None unless the matrix
+    is one population against itself (the same members in the same order, at least two).
+    """
+    if list(matrix.index) != list(matrix.columns) or len(matrix) < 2:
+        return None
+    values = matrix.to_numpy(dtype=float)
+    diagonal = values.diagonal()
+    off = values[~np.eye(len(values), dtype=bool)]
+    return {"selfplay": float(diagonal.mean()), "crossplay": float(off.mean()), "gap": float(diagonal.mean() - off.mean())}
 
 
 def write_crossplay(matrix: pd.DataFrame, out: str | Path, stem: str) -> tuple[Path, Path]:

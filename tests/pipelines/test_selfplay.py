@@ -23,7 +23,7 @@ from rllib_conv.modules import partner_id
 from rllib_conv.modules.multi import replica_id
 from rllib_conv.partners.trained import TrainedPolicyPartner
 from rllib_conv.pipelines import selfplay
-from rllib_conv.pipelines.crossplay import crossplay, write_crossplay
+from rllib_conv.pipelines.crossplay import crossplay, crossplay_gap, write_crossplay
 from rllib_conv.pipelines.selfplay import fcp_members, train_population
 from rllib_conv.pipelines.selfplay_config import SelfPlayConfig
 from rllib_conv.training.algorithm import build_ppo_config
@@ -206,6 +206,25 @@ def test_crossplay_matrix_shape_labels_and_diagonal(tmp_path) -> None:
     assert (np.diag(matrix.to_numpy()) == 1.0).all()
     csv, png = write_crossplay(matrix, tmp_path, "hand")
     assert pd.read_csv(csv, index_col=0).shape == (8, 8) and png.stat().st_size > 5000
+
+
+def test_crossplay_gap_is_the_diagonal_mean_minus_the_off_diagonal_mean() -> None:
+    names = ["a", "b", "c"]
+    matrix = pd.DataFrame([[1.0, 0.5, 0.0], [0.25, 0.8, 0.5], [0.0, 0.25, 0.9]], index=names, columns=names)
+    gap = crossplay_gap(matrix)
+    assert gap["selfplay"] == pytest.approx(0.9) and gap["crossplay"] == pytest.approx(0.25)
+    assert gap["gap"] == pytest.approx(0.65)
+    assert crossplay_gap(matrix[["b", "a", "c"]]) is None  # not one population against itself, member for member
+    assert crossplay_gap(matrix.loc[["a"], ["a"]]) is None  # one member: no cross-play
+
+
+def test_the_hand_population_pays_its_conventions_in_cross_play() -> None:
+    pop = partners.get("bandit-s2-hand")
+    arms = np.array([e.params["arms"] for e in pop.partners])
+    agree = (arms[:, None, :] == arms[None, :, :]).mean(-1)  # exact expected score: contexts are uniform
+    off = agree[~np.eye(len(arms), dtype=bool)].mean()
+    gap = crossplay_gap(crossplay(pop, pop, episodes=400, seed=0))
+    assert gap["selfplay"] == 1.0 and abs(gap["gap"] - (1.0 - off)) < 0.03 and gap["gap"] > 0.2
 
 
 @pytest.mark.slow
