@@ -22,17 +22,20 @@ its own seeded generator: `action_probs` says which.
 
 from __future__ import annotations
 
+import inspect
 from typing import Any
 
 import numpy as np
 
+from rllib_conv.envs.lbf.env import LBFEnv
 from rllib_conv.envs.lbf.observation import EAST, LOAD, NORTH, SOUTH, WEST, SeenState, read_observation
 from rllib_conv.envs.spaces import check_choice
 from rllib_conv.partners.base import SampledPartner
 from rllib_conv.partners.kinds import register_kind
 
 RULES = ("H1", "H2", "H3", "H4")
-DEFAULT_FOOD = 3  # `envs.lbf.LBFEnv`'s default number of food slots
+# The env's defaults, which a partner built without `food` and `players` reads observations of.
+_ENV_DEFAULTS = {name: p.default for name, p in inspect.signature(LBFEnv).parameters.items()}
 
 
 def heuristic_target(seen: SeenState, rule: str) -> tuple[int, int] | None:
@@ -65,19 +68,25 @@ def heuristic_probs(seen: SeenState, rule: str, action_mask: np.ndarray) -> np.n
 
 @register_kind
 class LBFHeuristic(SampledPartner):
-    """A heuristic forager of type `rule` (H1-H4) for an LBF env with `food` food slots; see the module docstring."""
+    """A heuristic forager of type `rule` (H1-H4); see the module docstring.
+
+    `food` and `players` are the env's (its defaults by default): they say how to read its observation vector.
+    """
 
     kind = "lbf_heuristic"
 
-    def __init__(self, name: str, rule: str = "H1", food: int = DEFAULT_FOOD) -> None:
+    def __init__(
+        self, name: str, rule: str = "H1", food: int = _ENV_DEFAULTS["food"], players: int = _ENV_DEFAULTS["players"]
+    ) -> None:
         super().__init__(name)
         check_choice("rule", rule, list(RULES))
-        if isinstance(food, bool) or not isinstance(food, int) or food < 1:
-            raise ValueError(f"food must be the env's number of food slots (an integer >= 1), got {food!r}")
-        self.rule, self.food = rule, food
+        for what, value in (("food", food), ("players", players)):
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise ValueError(f"{what} must be the env's {what} (an integer >= 1), got {value!r}")
+        self.rule, self.food, self.players = rule, food, players
 
     def params(self) -> dict[str, Any]:
-        return {"rule": self.rule, "food": self.food}
+        return {"rule": self.rule, "food": self.food, "players": self.players}
 
     def act(self, observation: np.ndarray, action_mask: np.ndarray) -> int:
         p = self.action_probs(np.asarray(observation)[None], np.asarray(action_mask)[None])[0]
@@ -86,5 +95,8 @@ class LBFHeuristic(SampledPartner):
 
     def action_probs(self, observations: np.ndarray, action_masks: np.ndarray) -> np.ndarray:
         return np.stack(
-            [heuristic_probs(read_observation(o, self.food), self.rule, m) for o, m in zip(observations, action_masks)]
+            [
+                heuristic_probs(read_observation(o, self.food, self.players), self.rule, m)
+                for o, m in zip(observations, action_masks)
+            ]
         )

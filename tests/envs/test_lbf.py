@@ -75,13 +75,13 @@ def test_observation_layout_food_then_self_then_the_others() -> None:
     env = envs.make("lbf", players=3, size=8, food=2)
     obs = place(env, [(3, 3, 1), (6, 6, 2), (0, 7, 1)], {(2, 5): 2, (5, 1): 3})
     assert env.observation_space("player_0")["observation"].shape == (observation_size(3, 2),)
-    seen = read_observation(obs["player_1"]["observation"], food=2)
+    seen = read_observation(obs["player_1"]["observation"], food=2, players=3)
     assert seen.food.tolist() == [[2, 5, 2], [5, 1, 3]]  # reading order
     assert seen.players.tolist() == [[6, 6, 2], [3, 3, 1], [0, 7, 1]]  # itself first, then seat order
     # Partial sight: 1 cell around (3, 3) is rows/cols 2..4, in window coordinates; nothing else is in view.
     near = envs.make("lbf", players=3, size=8, food=2, sight=1)
     obs = place(near, [(3, 3, 1), (6, 6, 2), (0, 7, 1)], {(2, 4): 2, (5, 1): 3})
-    seen = read_observation(obs["player_0"]["observation"], food=2)
+    seen = read_observation(obs["player_0"]["observation"], food=2, players=3)
     assert seen.food.tolist() == [[0, 2, 2]] and seen.players.tolist() == [[1, 1, 1]]
 
 

@@ -11,7 +11,7 @@ import pytest
 from lbforaging.foraging.environment import Action
 
 from rllib_conv import envs, partners
-from rllib_conv.envs.lbf import EAST, LOAD, NONE, NORTH, SOUTH, WEST, read_observation
+from rllib_conv.envs.lbf import EAST, LOAD, NONE, NORTH, SOUTH, WEST, SeenState, read_observation
 from rllib_conv.partners.lbf import RULES, LBFHeuristic, heuristic_probs, heuristic_target
 
 ALL_LEGAL = np.ones(6, dtype=np.int8)
@@ -24,12 +24,17 @@ def vector(food: list[tuple[int, int, int]], players: list[tuple[int, int, int]]
     return np.array(rows, dtype=np.float32).reshape(-1)
 
 
+def seen_as(food: list[tuple[int, int, int]], players: list[tuple[int, int, int]], food_slots: int, seats: int) -> SeenState:
+    """What a seat sees in the observation `vector(...)`."""
+    return read_observation(vector(food, players, food_slots, seats), food_slots, seats)
+
+
 # Me at (4, 1), level 1; the others at (0, 6) and (2, 7), level 1: the centre is rint((2, 4.67)) = (2, 5), levels sum to 3.
 PLAYERS = [(4, 1, 1), (0, 6, 1), (2, 7, 1)]
 FOOD = [(2, 4, 4), (3, 7, 3), (4, 3, 2), (7, 1, 1)]  # reading order
 #        to me:   13        37        4         9      -> H1: (4, 3);  level <= 1: H3: (7, 1)
 #    to centre:    1         5        8        41      -> H2: (2, 4);  level <= 3: H4: (3, 7)
-STATE = read_observation(vector(FOOD, PLAYERS, 4, 3), food=4)
+STATE = seen_as(FOOD, PLAYERS, 4, 3)
 EXPECTED = {"H1": ((4, 3), EAST), "H2": ((2, 4), NORTH), "H3": ((7, 1), SOUTH), "H4": ((3, 7), NORTH)}
 
 
@@ -41,14 +46,14 @@ def test_each_rule_picks_its_food_and_steps_toward_it(rule: str) -> None:
 
 
 def test_next_to_its_food_it_loads_and_diagonally_it_steps() -> None:
-    beside = read_observation(vector([(4, 2, 1)], [(4, 1, 1), (0, 0, 1)], 1, 2), food=1)
+    beside = seen_as([(4, 2, 1)], [(4, 1, 1), (0, 0, 1)], 1, 2)
     assert heuristic_probs(beside, "H1", ALL_LEGAL).argmax() == LOAD
-    diagonal = read_observation(vector([(3, 2, 1)], [(4, 1, 1), (0, 0, 1)], 1, 2), food=1)
+    diagonal = seen_as([(3, 2, 1)], [(4, 1, 1), (0, 0, 1)], 1, 2)
     assert heuristic_probs(diagonal, "H1", ALL_LEGAL).argmax() == NORTH  # a row first, then a column
 
 
 def test_a_blocked_step_tries_the_next_direction_then_moves_at_random() -> None:
-    seen = read_observation(vector([(2, 4, 1)], [(4, 1, 1), (0, 0, 1)], 1, 2), food=1)  # north-east of me
+    seen = seen_as([(2, 4, 1)], [(4, 1, 1), (0, 0, 1)], 1, 2)  # north-east of me
     no_north = np.array([1, 0, 1, 1, 1, 0], dtype=np.int8)
     assert heuristic_probs(seen, "H1", no_north).argmax() == EAST
     only_west_south = np.array([1, 0, 1, 1, 0, 0], dtype=np.int8)  # neither way toward it: uniform over the legal
@@ -57,7 +62,7 @@ def test_a_blocked_step_tries_the_next_direction_then_moves_at_random() -> None:
 
 def test_with_no_food_it_can_take_every_legal_action_is_equally_likely() -> None:
     # H3 at level 1 sees only a level-2 food: nothing it can load alone.
-    seen = read_observation(vector([(2, 4, 2)], [(4, 1, 1), (0, 0, 1)], 1, 2), food=1)
+    seen = seen_as([(2, 4, 2)], [(4, 1, 1), (0, 0, 1)], 1, 2)
     assert heuristic_target(seen, "H3") is None
     mask = np.array([1, 1, 0, 1, 1, 0], dtype=np.int8)
     assert heuristic_probs(seen, "H3", mask).tolist() == [0.25, 0.25, 0.0, 0.25, 0.25, 0.0]
@@ -65,14 +70,15 @@ def test_with_no_food_it_can_take_every_legal_action_is_equally_likely() -> None
 
 
 def test_a_tie_goes_to_the_first_food_in_reading_order() -> None:
-    seen = read_observation(vector([(2, 3, 1), (4, 5, 1)], [(3, 4, 1), (0, 0, 1)], 2, 2), food=2)  # both at distance 2
+    seen = seen_as([(2, 3, 1), (4, 5, 1)], [(3, 4, 1), (0, 0, 1)], 2, 2)  # both at distance 2
     assert heuristic_target(seen, "H1") == (2, 3)
 
 
 def test_the_partner_kind_is_registered_seeded_and_refuses_bad_parameters() -> None:
     assert "lbf_heuristic" in partners.kinds()
-    built = partners.partner_from_spec({"name": "h4", "kind": "lbf_heuristic", "params": {"rule": "H4", "food": 4}})
-    assert built.params() == {"rule": "H4", "food": 4} and built.act(vector(FOOD, PLAYERS, 4, 3), ALL_LEGAL) == NORTH
+    spec = {"name": "h4", "kind": "lbf_heuristic", "params": {"rule": "H4", "food": 4, "players": 3}}
+    built = partners.partner_from_spec(spec)
+    assert built.to_spec() == spec and built.act(vector(FOOD, PLAYERS, 4, 3), ALL_LEGAL) == NORTH
     # Random moves come from the partner's own generator: one seed, one sequence.
     nothing = vector([], PLAYERS, 4, 3)
     draws = []
@@ -82,10 +88,12 @@ def test_the_partner_kind_is_registered_seeded_and_refuses_bad_parameters() -> N
     assert draws[0] == draws[1] and len(set(draws[0])) > 1
     with pytest.raises(ValueError, match="rule must be one of"):
         LBFHeuristic("x", rule="H5")
-    with pytest.raises(ValueError, match="food must be the env's number of food slots"):
+    with pytest.raises(ValueError, match="food must be the env's food"):
         LBFHeuristic("x", food=0)
-    with pytest.raises(ValueError, match="does not hold 9 food slots"):
-        LBFHeuristic("x", food=9).act(vector(FOOD, PLAYERS, 4, 3), ALL_LEGAL)
+    # Built for the env's defaults (3 food, 3 players), it refuses another env's vector rather than misread it.
+    assert LBFHeuristic("x").params() == {"rule": "H1", "food": 3, "players": 3}
+    with pytest.raises(ValueError, match="21 numbers is not one of an env with food=3 and players=3"):
+        LBFHeuristic("x").act(vector(FOOD, PLAYERS, 4, 3), ALL_LEGAL)
 
 
 def _reference_agents() -> dict[str, type]:
@@ -109,7 +117,7 @@ def test_every_move_is_the_packages_own_heuristics(sight: int | None) -> None:
     random.seed(0)
     env = envs.make("lbf", players=4, size=8, food=3, sight=sight)
     reference = _reference_agents()
-    seats = [LBFHeuristic(rule, rule=rule, food=3) for rule in RULES]
+    seats = [LBFHeuristic(rule, rule=rule, food=3, players=4) for rule in RULES]
     for i, seat in enumerate(seats):
         seat.seed(i)
     obs, _ = env.reset(seed=1)
@@ -118,7 +126,7 @@ def test_every_move_is_the_packages_own_heuristics(sight: int | None) -> None:
         actions = {}
         for agent, seat, player in zip(env.possible_agents, seats, env.forage.players):
             theirs = reference[seat.rule](player)._step(env.forage._make_obs(player)).value
-            ours = heuristic_probs(read_observation(obs[agent]["observation"], 3), seat.rule, obs[agent]["action_mask"])
+            ours = heuristic_probs(read_observation(obs[agent]["observation"], 3, 4), seat.rule, obs[agent]["action_mask"])
             if ours.max() == 1.0:
                 assert theirs == int(ours.argmax()), (seat.rule, env.forage._make_obs(player))
                 scripted += 1

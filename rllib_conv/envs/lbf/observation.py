@@ -38,13 +38,16 @@ class SeenState:
         return self.players[0]
 
 
-def read_observation(observation: np.ndarray, food: int) -> SeenState:
-    """Split a seat's vector (with `food` food slots) into the food and players it sees; ValueError on a wrong size."""
+def read_observation(observation: np.ndarray, food: int, players: int) -> SeenState:
+    """Split a seat's vector of an env with `food` food slots and `players` players into what it sees.
+
+    ValueError when the vector's size is not theirs (a partner built for other settings than the env's).
+    """
     vec = np.asarray(observation, dtype=np.float64).reshape(-1)
-    if len(vec) % 3 or len(vec) // 3 - food < 2:
+    if len(vec) != observation_size(players, food):
         raise ValueError(
-            f"lbf: an observation of {len(vec)} numbers does not hold {food} food slots and 2 or more players "
-            "(a partner's `food` must be the env's `food`)"
+            f"lbf: an observation of {len(vec)} numbers is not one of an env with food={food} and players={players} "
+            f"({observation_size(players, food)} numbers): give the partner the env's food and players"
         )
     triples = np.rint(vec).astype(np.int64).reshape(-1, 3)
     foods, players = triples[:food], triples[food:]
