@@ -25,11 +25,12 @@ adjacent, is masked, and a masked action raises (the package would quietly turn 
 
 from __future__ import annotations
 
+import importlib
+from functools import cache
 from typing import Any
 
 import numpy as np
 from gymnasium import spaces
-from lbforaging.foraging.environment import ForagingEnv, Player
 from pettingzoo import ParallelEnv
 
 from rllib_conv.envs.lbf.observation import NUM_ACTIONS
@@ -41,15 +42,24 @@ MAX_FOOD = 9
 HORIZON = 50  # lbforaging's registered episode length
 
 
-class _SeatPlayer(Player):
-    """A package `Player` that hashes to its seat index, so sets of players iterate in seat order."""
+@cache
+def _package() -> tuple[type, type]:
+    """lbforaging's `ForagingEnv`, and its `Player` hashing to its seat index (sets of players iterate in seat order).
 
-    def __init__(self, index: int) -> None:
-        super().__init__()
-        self.index = index
+    Imported on the first env built, not with this module: importing `lbforaging` registers its
+    1,920 gymnasium ids (0.6-1.2 s), and every command imports the game registry.
+    """
+    environment = importlib.import_module("lbforaging.foraging.environment")
 
-    def __hash__(self) -> int:
-        return self.index
+    class SeatPlayer(environment.Player):
+        def __init__(self, index: int) -> None:
+            super().__init__()
+            self.index = index
+
+        def __hash__(self) -> int:
+            return self.index
+
+    return environment.ForagingEnv, SeatPlayer
 
 
 def _positive_int(name: str, value: Any, low: int = 1, high: int | None = None) -> int:
@@ -94,7 +104,8 @@ class LBFEnv(ParallelEnv):
         if render_mode not in (None, *self.metadata["render_modes"]):
             raise ValueError(f"lbf: render_mode must be one of {[None, *self.metadata['render_modes']]}, got {render_mode!r}")
         self.render_mode = render_mode
-        self._env = ForagingEnv(
+        foraging_env, seat_player = _package()
+        self._env = foraging_env(
             players=self.num_players,
             min_player_level=1,
             max_player_level=self.max_player_level,
@@ -109,7 +120,7 @@ class LBFEnv(ParallelEnv):
             grid_observation=False,
             observe_agent_levels=True,
         )
-        self._env.players = [_SeatPlayer(i) for i in range(self.num_players)]
+        self._env.players = [seat_player(i) for i in range(self.num_players)]
         self.possible_agents = [f"player_{i}" for i in range(self.num_players)]
         self.agents: list[str] = []
         inner = self._env.observation_space[0]
@@ -129,8 +140,8 @@ class LBFEnv(ParallelEnv):
         return self._act_space
 
     @property
-    def forage(self) -> ForagingEnv:
-        """The package's env underneath (its `field` and `players` are the state)."""
+    def forage(self) -> Any:
+        """The package's `ForagingEnv` underneath (its `field` and `players` are the state)."""
         return self._env
 
     def masks(self) -> list[np.ndarray]:
