@@ -18,6 +18,10 @@ away, not diagonally) it loads; otherwise it steps toward it, trying north, sout
 in that order (a row first, then a column), each only if that move is legal. With no target
 food in sight, or no legal step toward it, it takes a legal action uniformly at random, from
 its own seeded generator: `action_probs` says which.
+
+Built-in population `lbf-heuristics`: the default 3-player game, the partners in `player_1`
+and `player_2`; H1 and H2 train (every episode seats one of them in each partner seat), H3
+and H4, their level-aware variants, are held out.
 """
 
 from __future__ import annotations
@@ -32,6 +36,7 @@ from rllib_conv.envs.lbf.observation import EAST, LOAD, NORTH, SOUTH, WEST, Seen
 from rllib_conv.envs.spaces import check_choice
 from rllib_conv.partners.base import SampledPartner
 from rllib_conv.partners.kinds import register_kind
+from rllib_conv.partners.population import Population, from_partners, register_builtin
 
 RULES = ("H1", "H2", "H3", "H4")
 # The env's defaults, which a partner built without `food` and `players` reads observations of.
@@ -100,3 +105,19 @@ class LBFHeuristic(SampledPartner):
                 for o, m in zip(observations, action_masks)
             ]
         )
+
+
+def lbf_heuristics() -> Population:
+    """The 3-player population of heuristic foragers: H1 and H2 to train with, H3 and H4 held out."""
+    return from_partners(
+        "lbf-heuristics",
+        "lbf",
+        {"players": 3},
+        [LBFHeuristic(rule, rule=rule) for rule in ("H1", "H2")],
+        [LBFHeuristic(rule, rule=rule) for rule in ("H3", "H4")],
+        description="Level-Based Foraging's heuristic types, 3 players: H1, H2 train; H3, H4 (level-aware) held out",
+        partner_agent=["player_1", "player_2"],
+    )
+
+
+register_builtin("lbf-heuristics", lbf_heuristics)
