@@ -86,3 +86,35 @@ def test_pair_on_the_command_line_writes_one_csv_named_after_the_seats(tmp_path,
     assert (row["env"], row["episodes"], row["exact_return"]) == ("bandit", 30, 1.0)
     assert main([*argv, "--name", "mine"]) == 0
     assert (tmp_path / "mine.csv").is_file()
+
+
+HEURISTICS = ["lbf_heuristic:{rule: H1}", "lbf_heuristic:{rule: H2}", "lbf_heuristic:{rule: H4}"]
+
+
+def test_three_heuristic_foragers_fill_the_three_seats_of_lbf_and_collect_food() -> None:
+    row = pair(PairConfig(seats=HEURISTICS, env="lbf", episodes=40, seed=2)).iloc[0]
+    assert [row[f"seat_{i}"] for i in range(3)] == HEURISTICS and row["env"] == "lbf"
+    assert 0.0 < row["mean_return"] <= 1.0 and row["stderr"] > 0  # the team's share of the food, from 0 to 1
+    assert pd.isna(row["exact_return"])  # no exact return for this game
+    again = pair(PairConfig(seats=HEURISTICS, env="lbf", episodes=40, seed=2)).iloc[0]
+    assert again["mean_return"] == row["mean_return"]  # one seed, one result
+
+
+def test_four_foragers_play_once_the_game_has_four_players() -> None:
+    four = [f"lbf_heuristic:{{rule: H{i}, players: 4}}" for i in range(1, 5)]
+    row = pair(PairConfig(seats=four, env="lbf", env_config={"players": 4}, episodes=10)).iloc[0]
+    assert row["seat_3"] == four[3] and 0.0 <= row["mean_return"] <= 1.0
+    # Foragers built for 3 players misread a 4-player game's observations: refused, saying what to give them.
+    with pytest.raises(ValueError, match="give the partner the env's food and players"):
+        pair(PairConfig(seats=[*HEURISTICS, HEURISTICS[0]], env="lbf", env_config={"players": 4}, episodes=2))
+
+
+@pytest.mark.parametrize(
+    ("seats", "odd"),
+    [(HEURISTICS[:2], "player_2 has none"), ([*HEURISTICS, HEURISTICS[0]], "'lbf_heuristic:{rule: H1}' has no agent")],
+)
+def test_a_wrong_seat_count_is_refused_naming_the_seats_and_writes_nothing(tmp_path, capsys, seats, odd) -> None:
+    assert main(["pair", *seats, "--env", "lbf", "--episodes", "2", "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert f"lbf {{}} has 3 seats (player_0, player_1, player_2), got {len(seats)} SEATs ({odd})" in err
+    assert "give one SEAT per agent" in err and not (tmp_path / "out").exists()

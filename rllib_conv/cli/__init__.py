@@ -160,7 +160,7 @@ def _players(command: Callable[..., argparse.ArgumentParser]) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of those episodes (default 0)")
     p = command(
         "pair",
-        "play any two players together (ego heads, task modules, population members, scripted partners)",
+        "play fixed players together, one per seat (ego heads, task modules, population members, scripted partners)",
         commands.pair,
         description="Play fixed players, one per seat, for N episodes; write their mean return, its standard error "
         "and, on the bandit, the exact expected return to a CSV.",

@@ -231,7 +231,7 @@ def partners_show(args: argparse.Namespace) -> None:
     from rllib_conv import partners
 
     pop = partners.get(args.population)
-    print(f"{pop.name}: {pop.env} {pop.env_config}, partners in seat {pop.partner_agent}")
+    print(f"{pop.name}: {pop.env} {pop.env_config}, partners in seat {', '.join(pop.partner_agents)}")
     if pop.description:
         print(pop.description)
     rows = [{"partner": e.name, "split": e.split, "kind": e.kind, "params": json.dumps(e.params)} for e in pop.partners]

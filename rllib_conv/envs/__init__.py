@@ -7,8 +7,9 @@ builds its env, `names()` lists them, `register_game(record)` adds one and `regi
 factory)` adds a bare PettingZoo env (AEC or parallel). A game named by import path
 (`"package.module:RECORD"`) is found in every process. `to_rllib(name)` exposes any
 registered env to RLlib/Tune as a `MultiAgentEnv`. Overcooked (`overcooked/`) is registered
-only where its optional extra, the `overcooked` package, is installed; elsewhere
-`game("overcooked")` says how to install it.
+only where its optional extra, the `overcooked` package, is installed, and Level-Based
+Foraging (`lbf/`, 2-4 players) only where `lbforaging` is; elsewhere `game(name)` says how
+to install it.
 """
 
 import importlib.util
@@ -34,6 +35,13 @@ if importlib.util.find_spec("overcooked") is not None:
     register_game(OVERCOOKED, builtin=True)
 else:
     register_missing("overcooked", "pip install 'rllib-conv[overcooked]'")
+
+if importlib.util.find_spec("lbforaging") is not None:
+    from rllib_conv.envs.lbf.record import LBF
+
+    register_game(LBF, builtin=True)
+else:
+    register_missing("lbf", "pip install 'rllib-conv[lbf]'")
 
 __all__ = [
     "GameRecord",

@@ -9,7 +9,10 @@
   the replica's training partners in order and that replica's own `numpy` generator.
 
 A schedule answers `index(replica, episode, partners)` once per episode and replica, in
-episode order; its state (the generators') travels with checkpoints.
+episode order; its state (the generators') travels with checkpoints. In a game of more than
+two seats it is asked once per partner seat, seats after the first with `seat=j`: round
+robin then goes through every team of partners in turn, the weighted draw draws each seat
+on its own, and a function chooses for one partner seat only.
 """
 
 from __future__ import annotations
@@ -22,10 +25,13 @@ import numpy as np
 
 
 class RoundRobin:
-    """Partners in turn: episode n plays partner n mod (number of partners)."""
+    """Partners in turn: episode n plays partner n mod (number of partners) (P).
 
-    def index(self, replica: int, episode: int, partners: list[str]) -> int:
-        return episode % len(partners)
+    With several partner seats, seat j plays the j-th base-P digit of n: every team in turn, each once per P**seats episodes.
+    """
+
+    def index(self, replica: int, episode: int, partners: list[str], seat: int = 0) -> int:
+        return (episode // len(partners) ** seat) % len(partners)
 
     def get_state(self) -> dict[str, Any]:
         return {}
@@ -61,7 +67,7 @@ class WeightedPartners(_Seeded):
             raise ValueError(f"mapping weights must be non-negative with a positive sum; got {weights}")
         self.weights = dict(weights)
 
-    def index(self, replica: int, episode: int, partners: list[str]) -> int:
+    def index(self, replica: int, episode: int, partners: list[str], seat: int = 0) -> int:
         p = np.array([self.weights.get(name, 0.0) for name in partners], dtype=float)
         if p.sum() <= 0:
             raise ValueError(f"mapping weights {self.weights} give no weight to any of the partners {partners}")
@@ -90,7 +96,12 @@ class PartnerFunction(_Seeded):
         self.path = path
         self._fn: Callable[..., Any] | None = None
 
-    def index(self, replica: int, episode: int, partners: list[str]) -> int:
+    def index(self, replica: int, episode: int, partners: list[str], seat: int = 0) -> int:
+        if seat:
+            raise ValueError(
+                f"mapping function {self.path!r} chooses the partner of one partner seat; a game of more than two seats "
+                "takes the round robin or weighted mapping"
+            )
         if self._fn is None:
             self._fn = load_function(self.path)
         name = self._fn(episode, list(partners), self.rng(replica))

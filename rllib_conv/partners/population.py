@@ -73,9 +73,15 @@ class Population(BaseModel):
     name: str
     env: str
     env_config: dict[str, Any] = Field(default_factory=dict)
-    partner_agent: str = "player_1"
+    # The seat its partners play; in a game of more than two seats, every seat but the ego's, in order (a list).
+    partner_agent: str | list[str] = "player_1"
     description: str = ""
     partners: list[PartnerEntry]
+
+    @property
+    def partner_agents(self) -> list[str]:
+        """The partner seats, one or more: every seat a partner of this population plays, in order."""
+        return [self.partner_agent] if isinstance(self.partner_agent, str) else list(self.partner_agent)
 
     def entries(self, split: Split | None = None) -> list[PartnerEntry]:
         """Return the entries of `split` (all entries if None), in manifest order."""
@@ -198,7 +204,7 @@ def from_partners(
     train: list[Partner],
     test: list[Partner],
     description: str = "",
-    partner_agent: str = "player_1",
+    partner_agent: str | list[str] = "player_1",
 ) -> Population:
     """Build a population manifest from partner objects."""
     entries = [PartnerEntry(**p.to_spec(), split=split) for split, group in (("train", train), ("test", test)) for p in group]

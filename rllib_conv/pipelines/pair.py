@@ -1,4 +1,4 @@
-"""`rllib-conv pair`: any saved module, population member or scripted partner in any seat, against any other.
+"""`rllib-conv pair`: any saved module, population member or scripted partner in each seat of a game of 2 or more seats.
 
 Each seat (its syntax: `rllib-conv pair --help`) becomes a fixed `Partner`: an ego head or
 the task module alone of a trained ego's last checkpoint (sampling its policy), a
@@ -116,7 +116,12 @@ def pair(cfg: PairConfig) -> pd.DataFrame:
         raise ValueError(f"--env-config {cfg.env_config}: {' '.join(str(exc).split())}") from None
     agents = list(env.possible_agents)
     if len(seats) != len(agents):
-        raise ValueError(f"{game} {env_config} has {len(agents)} seats ({', '.join(agents)}), got {len(seats)}")
+        # Seats fill the agents in order: say which agents would sit empty, or which seats have no agent.
+        odd = [f"{a} has none" for a in agents[len(seats) :]] or [f"{s.text!r} has no agent" for s in seats[len(agents) :]]
+        raise ValueError(
+            f"{game} {env_config} has {len(agents)} seats ({', '.join(agents)}), got {len(seats)} SEATs ({'; '.join(odd)}): "
+            "give one SEAT per agent, in order"
+        )
     players = [s.player for s in seats]
     try:
         scores = play_episodes(env, dict(zip(agents, players)), cfg.episodes, cfg.seed)

@@ -30,12 +30,12 @@ from rllib_conv.common.methods import method
 from rllib_conv.common.run_folders import EVAL_FILE, REPLICA_PREFIX, TRAIN, replica_folder
 from rllib_conv.envs.oracles import has_oracle
 from rllib_conv.learners.marginal_learner import HEAD_L2_KEY, MARGINAL_REG_KEY
-from rllib_conv.modules.multi import AGG_HEAD_ID, TASK_ID, partner_id, replica_id
+from rllib_conv.modules.multi import AGG_HEAD_ID, TASK_ID, partner_id, replica_id, team_name
 from rllib_conv.partners.population import with_absolute_paths
 from rllib_conv.training.algorithm import Replica, build_algorithm
 from rllib_conv.training.callbacks import STEPS_DONE, STEPS_TOTAL
 from rllib_conv.training.ego_setup import EgoSetup, resolve
-from rllib_conv.training.evaluate import ego_head_partner, player_return
+from rllib_conv.training.evaluate import ego_head_partner, seated_return
 from rllib_conv.training.experiment import ExperimentConfig
 from rllib_conv.training.maml import MetaTrainer
 from rllib_conv.training.marginal_distance import marginal_distances, marginal_states
@@ -52,13 +52,17 @@ HISTORY_FILE = "replica_history.json"  # in a trial checkpoint: every replica's 
 
 
 def summarize(result: dict[str, Any], setup: EgoSetup, replica: int) -> dict[str, Any]:
-    """Replica `replica`'s part of RLlib's result dict: its env steps, per-partner returns, regulariser, head size."""
+    """Replica `replica`'s part of RLlib's result dict: its env steps, returns per partner (per team of partners where
+    there are several partner seats; the one head's for BaselineAgg there), regulariser, head size."""
     module_returns = result.get("env_runners", {}).get("module_episode_returns_mean", {})
-    per_partner = {
-        f"return/{e.name}": float(module_returns[mid])
-        for e in setup.train
-        if (mid := replica_id(partner_id(e.name), replica)) in module_returns
-    }
+    if len(setup.partner_agents) == 1:
+        # The partner module's return: the ego's, whichever head (or the one head) played.
+        played = {e.name: partner_id(e.name) for e in setup.train}
+    else:
+        # A partner in two seats sums both seats' returns in its module's: the ego's head per team says the team's.
+        played = {team_name(t): setup.head_for(t) for t in setup.teams}
+    modules = {name: replica_id(mid, replica) for name, mid in played.items()}
+    per_partner = {f"return/{name}": float(module_returns[mid]) for name, mid in modules.items() if mid in module_returns}
     learners = result.get("learners", {}).get(replica_id(TASK_ID, replica), {})
     return {
         "env_steps": replica_env_steps(result, replica),
@@ -69,22 +73,15 @@ def summarize(result: dict[str, Any], setup: EgoSetup, replica: int) -> dict[str
 
 
 def evaluate(module: Any, setup: EgoSetup, episodes: int, seed: int = 0) -> dict[str, Any]:
-    """Per training partner: sampled mean return (and exact, on the bandit); task-module marginal distance."""
+    """Per training partner (or team of them): sampled mean return (and exact, on the bandit); task-module marginal distance."""
     out: dict[str, Any] = {}
     game = setup.population.env
-    for e in setup.train:
-        r = player_return(
-            ego_head_partner(module, setup.head_for(e.name)),
-            game,
-            setup.env_config,
-            e.build(),
-            setup.ego_agent,
-            setup.partner_agent,
-            episodes,
-            seed,
-        )
-        for key, value in r.items():
-            out[f"eval/{key}/{e.name}"] = value
+    entries = {e.name: e for e in setup.train}
+    for team in setup.teams:  # each training partner alone; one per partner seat where there are several
+        players = {setup.ego_agent: ego_head_partner(module, setup.head_for(team))}
+        players |= {agent: entries[name].build() for agent, name in zip(setup.partner_agents, team)}
+        for key, value in seated_return(players, game, setup.env_config, episodes, seed).items():
+            out[f"eval/{key}/{team_name(team)}"] = value
     marginals = method(setup.exp.method).marginals
     if has_oracle(game) and marginals is not None:
         obs, mask = marginal_states(setup.population, episodes, seed)

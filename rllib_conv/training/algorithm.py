@@ -69,7 +69,7 @@ def packing_key(setup: EgoSetup) -> str:
         setup.env_config,
         {k: v.model_dump() if hasattr(v, "model_dump") else v for k, v in shared.items()},
     )
-    return json.dumps([*parts, setup.ego_agent, setup.partner_agent, len(setup.train)], sort_keys=True, default=str)
+    return json.dumps([*parts, setup.ego_agent, setup.partner_agents, len(setup.train)], sort_keys=True, default=str)
 
 
 def _check_packable(replicas: list[Replica]) -> None:
@@ -83,7 +83,7 @@ def _check_packable(replicas: list[Replica]) -> None:
             differs = [k for k in PACKED_KEYS if getattr(s.exp, k) != getattr(first.exp, k)]
             if s.population.env != first.population.env or s.env_config != first.env_config:
                 differs.append("game")
-            if len(s.train) != len(first.train) or (s.ego_agent, s.partner_agent) != (first.ego_agent, first.partner_agent):
+            if len(s.train) != len(first.train) or (s.ego_agent, s.partner_agents) != (first.ego_agent, first.partner_agents):
                 differs.append("partner count or seats")
             raise ValueError(
                 f"replicas must differ in seed, partners and weights only; replica {rep.own_seed} differs in {differs}"
@@ -267,7 +267,7 @@ def build_ppo_config(setup: EgoSetup | list[Replica], load: dict[str, str] | Non
     mapping = PartnerMapping(
         [e.name for e in first.train],
         first.ego_agent,
-        first.partner_agent,
+        first.partner_agents,
         shared_head=method(exp.method).single_head,
         replica_partners=[[e.name for e in rep.setup.train] for rep in replicas],
         schedule=partner_schedule(exp.mapping, [stream_seed(rep.own_seed, "mapping") for rep in replicas]),
@@ -277,7 +277,7 @@ def build_ppo_config(setup: EgoSetup | list[Replica], load: dict[str, str] | Non
     shuffle_seeds = {
         replica_id(mid, r): shuffle_seed(rep.own_seed, mid) for r, rep in enumerate(replicas) for mid in rep.setup.head_ids
     }
-    batch = ppo.rollout_per_partner * len(first.train)
+    batch = ppo.rollout_per_partner * len(first.teams)  # per partner, or per team of partners where there are several seats
     env_config = replicated_env_config(first.population.env, first.env_config, [rep.own_seed for rep in replicas], BASE_SEED)
     config = base_ppo_config(ReplicatedGame, env_config, ppo, exp.run, BASE_SEED, batch)
     return (

@@ -1,12 +1,19 @@
-"""`EgoSetup`: an experiment resolved against its population (game, seats, training partners, module IDs)."""
+"""`EgoSetup`: an experiment resolved against its population (game, seats, training partners, module IDs).
+
+In a game of k seats the population names the k-1 partner seats; every episode seats one
+training partner in each (`modules.mapping`), and the modular ego has a head per team of
+partners in seat order (`ego@a+b`: P**(k-1) heads for P training partners).
+"""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import itertools
+from dataclasses import dataclass, field
 
 from rllib_conv import envs, partners
 from rllib_conv.common.methods import method
 from rllib_conv.modules import AGG_HEAD_ID, ego_id
+from rllib_conv.modules.multi import team_name
 from rllib_conv.modules.partner_schedule import load_function
 from rllib_conv.partners.population import PartnerEntry, Population
 from rllib_conv.training.experiment import ExperimentConfig
@@ -20,17 +27,27 @@ class EgoSetup:
     population: Population
     env_config: dict
     ego_agent: str
-    partner_agent: str
+    partner_agent: str  # the first partner seat (its spaces are every partner seat's)
     train: list[PartnerEntry]
+    partner_agents: list[str] = field(default_factory=list)  # every partner seat; empty: `partner_agent` alone
+
+    def __post_init__(self) -> None:
+        self.partner_agents = list(self.partner_agents) or [self.partner_agent]
+
+    @property
+    def teams(self) -> list[tuple[str, ...]]:
+        """Every team of training partners, one per partner seat in seat order (one seat: each partner alone)."""
+        return list(itertools.product([e.name for e in self.train], repeat=len(self.partner_agents)))
 
     @property
     def head_ids(self) -> list[str]:
-        """The ego heads being trained (one per training partner; one for BaselineAgg)."""
-        return [AGG_HEAD_ID] if method(self.exp.method).single_head else [ego_id(e.name) for e in self.train]
+        """The ego heads being trained (one per training partner, or team of them; one for BaselineAgg)."""
+        return [AGG_HEAD_ID] if method(self.exp.method).single_head else [ego_id(team_name(t)) for t in self.teams]
 
-    def head_for(self, partner_name: str) -> str:
-        """The ego head that plays with `partner_name` (the shared head for single-network methods)."""
-        return AGG_HEAD_ID if method(self.exp.method).single_head else ego_id(partner_name)
+    def head_for(self, partner_name: str | tuple[str, ...]) -> str:
+        """The ego head that plays with `partner_name` (a team: one name per partner seat; the shared head for single-network methods)."""
+        names = (partner_name,) if isinstance(partner_name, str) else tuple(partner_name)
+        return AGG_HEAD_ID if method(self.exp.method).single_head else ego_id(team_name(names))
 
 
 def resolve(exp: ExperimentConfig) -> EgoSetup:
@@ -44,17 +61,24 @@ def setup_for(exp: ExperimentConfig, pop: Population, train: list[PartnerEntry])
     if exp.env is not None and exp.env != pop.env:
         raise ValueError(f"env {exp.env!r} does not match population {pop.name!r}, which is for {pop.env!r}")
     env_config = {**pop.env_config, **exp.env_config}
-    probe = envs.make(pop.env, **env_config)
-    if len(probe.possible_agents) != 2 or pop.partner_agent not in probe.possible_agents:
+    agents = list(envs.make(pop.env, **env_config).possible_agents)
+    seats = pop.partner_agents
+    if len(agents) == 2 and (len(seats) != 1 or seats[0] not in agents):
         raise ValueError(
-            f"population {pop.name!r}: partner_agent {pop.partner_agent!r} must be one of the game's two agents "
-            f"{probe.possible_agents}"
+            f"population {pop.name!r}: partner_agent {pop.partner_agent!r} must be one of the game's two agents {agents}"
+        )
+    if len(set(seats)) != len(seats) or not set(seats) <= set(agents) or len(seats) != len(agents) - 1:
+        raise ValueError(
+            f"population {pop.name!r}: partner_agent {pop.partner_agent!r} must list every seat but the ego's, "
+            f"{len(agents) - 1} of the game's {len(agents)} agents {agents}"
         )
     if not train:
         raise ValueError(f"population {pop.name!r} has no partners to train with")
-    ego_agent = next(a for a in probe.possible_agents if a != pop.partner_agent)
+    if len(seats) > 1 and exp.mapping.function is not None:
+        raise ValueError(f"mapping.function chooses one partner seat's partner; population {pop.name!r} has {len(seats)}")
+    ego_agent = next(a for a in agents if a not in seats)
     _check_mapping(exp, [e.name for e in train])
-    return EgoSetup(exp.resolve(pop.env), pop, env_config, ego_agent, pop.partner_agent, train)
+    return EgoSetup(exp.resolve(pop.env), pop, env_config, ego_agent, seats[0], train, seats)
 
 
 def _check_mapping(exp: ExperimentConfig, partners: list[str]) -> None:

@@ -81,9 +81,15 @@ def player_return(
     scored exactly from the two policies (`exact`); there `episodes=0` plays nothing (`mean`
     and `stderr` NaN). ValueError for `episodes=0` where the game or these players have none.
     """
+    return seated_return({ego_agent: ego, partner_agent: partner}, env_name, env_config, episodes, seed)
+
+
+def seated_return(
+    players: dict[str, Partner], env_name: str, env_config: dict[str, Any], episodes: int = 200, seed: int = 0
+) -> dict[str, float]:
+    """`player_return` for any number of seats: `players` gives the player of every agent of the game."""
     check_episodes(episodes, env_name, env_config)
     env = envs.make_scored(env_name, **env_config)
-    players = {ego_agent: ego, partner_agent: partner}
     out = {"mean": math.nan, "stderr": math.nan}
     if episodes:
         scores = play_episodes(env, players, episodes, seed)
@@ -96,7 +102,8 @@ def player_return(
     if value is not None:
         out["exact"] = value
     elif not episodes:
-        raise ValueError(f"episodes=0 needs an exact return, and {ego.name!r} with {partner.name!r} have none on {env_name!r}")
+        names = " with ".join(repr(p.name) for p in players.values())
+        raise ValueError(f"episodes=0 needs an exact return, and {names} have none on {env_name!r}")
     return out
 
 

@@ -1,4 +1,4 @@
-"""PartnerMapping: one partner per episode, in turn; ego to its head, partner to its module."""
+"""PartnerMapping: one partner per episode and partner seat, in turn; ego to its head, partners to their modules."""
 
 from __future__ import annotations
 
@@ -93,6 +93,61 @@ def test_a_users_function_chooses_the_partner_of_each_episode() -> None:
     )
     with pytest.raises(ValueError, match="returned 'nobody' for episode 0; expected one of \\['a', 'b'\\]"):
         wrong("player_0", ep(0))
+
+
+def test_three_seats_go_through_every_team_in_turn_and_the_ego_plays_its_teams_head() -> None:
+    m = PartnerMapping(["a", "b", "c"], "player_0", ["player_1", "player_2"])
+    teams = [(m("player_1", ep(i)), m("player_2", ep(i)), m("player_0", ep(i))) for i in range(10)]
+    assert teams[:4] == [
+        ("partner@a", "partner@a", "ego@a+a"),
+        ("partner@b", "partner@a", "ego@b+a"),
+        ("partner@c", "partner@a", "ego@c+a"),
+        ("partner@a", "partner@b", "ego@a+b"),
+    ]
+    assert len(set(teams[:9])) == 9 and teams[9] == teams[0]  # all 3 x 3 teams, each once, then again
+    assert (m("player_2", ep(5)), m("player_1", ep(5)), m("player_0", ep(5))) == (
+        "partner@b",
+        "partner@c",
+        "ego@c+b",
+    )  # asked again
+    shared = PartnerMapping(["a", "b"], "player_0", ["player_1", "player_2"], shared_head=True)
+    assert shared("player_0", ep(0)) == AGG_HEAD_ID
+    with pytest.raises(ValueError, match="neither the ego \\('player_0'\\) nor a partner \\('player_1', 'player_2'\\)"):
+        m("player_3", ep(0))
+
+
+def test_three_seats_state_round_trips_and_an_old_one_seat_state_still_loads() -> None:
+    m = PartnerMapping(["a", "b"], "player_0", ["player_1", "player_2"])
+    played = [m("player_0", ep(i)) for i in range(3)]
+    restored = PartnerMapping(["a", "b"], "player_0", ["player_1", "player_2"])
+    restored.set_state(m.get_state())
+    assert [restored("player_0", ep(i)) for i in range(4)] == [*played, "ego@b+b"]  # remembered, then goes on
+    old = PartnerMapping(["a", "b"], "player_0", "player_1")
+    old.set_state({"next": 1, "assigned": [["episode-0", [1]]], "focus": None, "schedule": {}})  # one int per replica
+    assert old("player_1", ep(0)) == "partner@b" and old("player_1", ep(1)) == "partner@b"
+
+
+def test_three_seats_with_weights_draw_each_seat_and_focus_fills_every_seat() -> None:
+    m = PartnerMapping(["a", "b"], "player_0", ["player_1", "player_2"], schedule=WeightedPartners({"a": 1.0, "b": 1.0}, [3]))
+    teams = [m("player_0", ep(i)) for i in range(2000)]
+    assert sorted(set(teams)) == [f"ego@{t}" for t in ("a+a", "a+b", "b+a", "b+b")]
+    assert all(abs(teams.count(t) / 2000 - 0.25) < 0.04 for t in set(teams))  # each seat drawn on its own, 1/2 each
+    m.focus("b")
+    assert (m("player_1", ep(2000)), m("player_2", ep(2000))) == ("partner@b", "partner@b")
+
+
+def test_three_seats_refuse_a_mapping_function_and_bad_seats() -> None:
+    m = PartnerMapping(
+        ["a", "b"],
+        "player_0",
+        ["player_1", "player_2"],
+        schedule=PartnerFunction("tests.modules.mapping_functions:alternate_first_two", [0]),
+    )
+    with pytest.raises(ValueError, match="chooses the partner of one partner seat"):
+        m("player_0", ep(0))
+    for seats in ([], ["player_1", "player_1"], ["player_0", "player_1"]):
+        with pytest.raises(ValueError, match="distinct partner agents besides the ego"):
+            PartnerMapping(["a"], "player_0", seats)
 
 
 @pytest.mark.parametrize(

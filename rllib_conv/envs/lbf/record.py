@@ -1,0 +1,19 @@
+"""Level-Based Foraging's record: its env and scripted partners; no oracle, key or exact best response yet."""
+
+from __future__ import annotations
+
+from rllib_conv.envs.game import GameRecord
+from rllib_conv.envs.lbf.env import LBFEnv
+
+LBF = GameRecord(
+    name="lbf",
+    env=LBFEnv,
+    title="Level-Based Foraging",
+    # No training defaults of its own yet: the fallback's (64 units, 256-step rollouts per partner) until a
+    # trained ego shows what this game needs.
+    # With partial sight (`sight` < `size`) a partner sees food and players out of the ego's view; a setting of the
+    # game, so the record says it for every setting (no adapter of this game reads the partner's situation yet).
+    partner_sees="the food and players in its view but out of the ego's (with sight < size)",
+    max_score=1.0,  # the team's normalised reward: every food collected
+    partners=("rllib_conv.partners.lbf",),
+)
