@@ -9,19 +9,26 @@ one core's float32 batched matrix product at the learner's largest layer (`peak`
 replicas x minibatch rows x hidden units of its hidden-to-hidden layers), the best the
 update could run at.
 
-The floor of a plan's ego training is its egos' env steps x (sampling + learning FLOPs per
-env step) / (cores x peak): what no change to the training loop beats without changing the
-networks, the epochs or the budgets. It counts ours' FLOPs for every method of the plan
-and leaves out the partners' networks (self-play partners act through networks as large as
-the ego's task module), self-play, adaptation and evaluation: a lower bound of the stage,
-and of the plan. Writes `benchmarks/results/flop_floor.json`.
+The floor of a plan's ego training counts every ego the full plan trains as it trains it
+(`plan_flops`): each population with its own partner count (so its own number of heads), each
+method with its own arithmetic (every head on every row where the loss reads them all, one
+head for BaselineAgg and MAML, `z_dim`, the population's budget and rollout overrides), 3 seeds
+packed per trial. A self-play population does not exist before its stage runs; it is stood in
+for by as many random partners as its entry trains pairs (the ego's arithmetic depends on the
+partner count, not on the partners). The floor is the plan's FLOPs / (cores x peak): what no
+change to the training loop beats without changing the networks, the epochs or the budgets. It
+leaves out the partners' networks (self-play partners act through networks as large as the
+ego's task module), self-play, adaptation and evaluation: a lower bound of the train stage, and
+of the plan. The machine (CPU model, vector ISA) is in the result, as every benchmark's. Writes
+`benchmarks/results/flop_floor.json`, and per game the plan's rows under `plans`.
 
-    OMP_NUM_THREADS=1 .venv/bin/python -m benchmarks.flop_floor [--repeats 5] [--games bandit blocks hanabi]
+    OMP_NUM_THREADS=1 .venv/bin/python -m benchmarks.flop_floor [--repeats 5] [--games bandit blocks hanabi] [--seeds 3]
 """
 
 from __future__ import annotations
 
 import argparse
+import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -32,12 +39,20 @@ from torch.utils.flop_counter import FlopCounterMode
 
 from benchmarks._common import median_seconds, write_result
 from benchmarks.train_throughput import fixed_update, ours, population_of
-from rllib_conv import envs
+from rllib_conv import envs, partners
+from rllib_conv.common import config_files
+from rllib_conv.common.resources import config_file
+from rllib_conv.common.run_folders import POPULATIONS_DIR
+from rllib_conv.partners.hanabi import RandomLegalPartner
 from rllib_conv.pipelines.plans import plan_for
+from rllib_conv.pipelines.reproduce import Reproduction
+from rllib_conv.training.algorithm import Replica, build_ppo_config, packing_key
+from rllib_conv.training.ego_setup import resolve
+from rllib_conv.training.experiment import ExperimentConfig
 from rllib_conv.training.replica_steps import replica_env_steps
 
 SEEDS = 3  # replicas per trial, as `train` packs a 3-seed experiment
-TARGET_MINUTES = {"bandit": 15, "blocks": 60, "hanabi": 30}  # issue 22: the whole plan's wall time
+TARGET_MINUTES = {"bandit": 15, "blocks": 60, "hanabi": 45}  # issue 49: the whole plan's wall time (EPYC)
 
 
 def flops(call: Any) -> tuple[int, Any]:
@@ -55,36 +70,76 @@ def peak_gflops(rows: int, hidden: int, repeats: int = 20) -> float:
     return 2 * SEEDS * rows * hidden * hidden / seconds / 1e9
 
 
-def plan_ego_steps(game: str, seeds: int = 3) -> int:
-    """Env steps of every ego the full plan of `game` trains (each population's methods, then the self-play methods)."""
-    plan = plan_for(game, seeds=seeds)
-    default = envs.game(game).training_defaults().timesteps
-    steps = sum(
-        len(variants) * plan.population_overrides.get(population, {}).get("run", {}).get("timesteps", default)
-        for population, variants in plan.populations.items()
+def iteration_flops(algo: Any) -> tuple[int, int, int, Any]:
+    """(sampling FLOPs, update FLOPs, env steps) of one iteration of `algo` after a warm-up one, and that iteration's episodes."""
+    before = algo.train()  # warm-up: optimizer states exist, the env runner's weights are set
+    after = algo.train()
+    steps = sum(replica_env_steps(after, r) - replica_env_steps(before, r) for r in range(SEEDS))
+    sample_flops, episodes = flops(algo.env_runner.sample)
+    update_flops, _ = flops(fixed_update(algo, episodes))
+    return sample_flops, update_flops, steps, episodes
+
+
+def _stand_in(game: str, entry: dict[str, Any], folder: Path) -> str:
+    """A population of as many random partners as self-play `entry` trains pairs, in its game and seat (a manifest path)."""
+    config = config_files.read_yaml(config_file(f"selfplay_{game}.yaml"), "self-play config")
+    merged = {**config, **{k: v for k, v in entry.items() if k != "populations"}}
+    pop = partners.from_partners(
+        f"stand-in-{entry['name']}",
+        game,
+        merged.get("env_config", {}),
+        [RandomLegalPartner(f"sp{k:02d}", seed=k) for k in range(int(merged.get("train_pairs", 10)))],
+        [],
+        partner_agent=merged.get("partner_agent", "player_1"),
     )
-    steps += len(plan.selfplay) * len(plan.selfplay_methods) * default
-    return steps * len(plan.seeds)
+    return str(pop.save(folder / f"stand-in-{entry['name']}.json"))
 
 
-def measure(game: str, repeats: int, folder: Path) -> dict[str, Any]:
-    """FLOPs per env step and achieved GFLOP/s of one iteration's sampling and learner update for `game`."""
+def plan_flops(game: str, seeds: int, folder: Path) -> list[dict[str, Any]]:
+    """One row per experiment the full plan of `game` trains: its egos' env steps and FLOPs per env step (see the module docstring)."""
+    plan = plan_for(game, seeds=seeds)
+    repro = Reproduction(plan, folder / "plan", log=lambda _: None)
+    stand_ins = {str(folder / "plan" / POPULATIONS_DIR / sp["name"]): sp for sp in plan.selfplay}
+    rows, cache = [], {}
+    for raw in repro.training():
+        population = raw["population"]
+        if population in stand_ins:
+            population = _stand_in(game, stand_ins[population], folder)
+        settings = {k: v for k, v in raw.items() if k not in ("name", "seed")}
+        exps = [resolve(ExperimentConfig.model_validate({**settings, "population": population, "seed": s})) for s in range(SEEDS)]
+        key = packing_key(exps[0])
+        if key not in cache:
+            algo = build_ppo_config([Replica(e) for e in exps]).build_algo()
+            try:
+                sample, update, steps, _ = iteration_flops(algo)
+            finally:
+                algo.stop()
+            cache[key] = (sample + update) / steps
+        egos_steps = repro.train_steps(raw) * len(plan.seeds)
+        rows.append(
+            {
+                "experiment": raw["name"],
+                "partners": len(exps[0].train),
+                "ego_env_steps": egos_steps,
+                "mflop_per_step": cache[key] / 1e6,
+                "tflop": egos_steps * cache[key] / 1e12,
+            }
+        )
+    return rows
+
+
+def measure(game: str, repeats: int, folder: Path, seeds: int) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+    """FLOPs per env step and achieved GFLOP/s of one iteration of `ours` for `game`, and the plan's floor (with its rows)."""
     config = ours(population_of(game, folder), SEEDS)
     algo = config.build_algo()
     try:
-        before = algo.train()  # warm-up: optimizer states exist, the env runner's weights are set
-        after = algo.train()
-        steps = sum(replica_env_steps(after, r) - replica_env_steps(before, r) for r in range(SEEDS))
-        runner = algo.env_runner
-        sample_flops, episodes = flops(runner.sample)
+        sample_flops, update_flops, steps, episodes = iteration_flops(algo)
         update = fixed_update(algo, episodes)
-        update_flops, _ = flops(update)
-        seconds = median_seconds({"sample": runner.sample, "update": update}, repeats)
+        seconds = median_seconds({"sample": algo.env_runner.sample, "update": update}, repeats)
     finally:
         algo.stop()
     hidden = envs.game(game).training_defaults().hidden
     peak = peak_gflops(config.minibatch_size, hidden)
-    per_step = (sample_flops + update_flops) / steps
     row = {
         "env": game,
         "env_steps_per_iteration": steps,
@@ -95,35 +150,39 @@ def measure(game: str, repeats: int, folder: Path) -> dict[str, Any]:
         "peak_gflops": peak,
         "update_at_peak": update_flops / seconds["update"] / 1e9 / peak,
     }
-    plan_steps = plan_ego_steps(game)
+    plan_rows = plan_flops(game, seeds, folder)
+    plan_flop = sum(r["tflop"] for r in plan_rows) * 1e12
+    plan_steps = sum(r["ego_env_steps"] for r in plan_rows)
     cores = int(ray.cluster_resources().get("CPU", 1))
     row.update(
         {
             "plan_ego_steps": plan_steps,
-            "plan_train_floor_min": plan_steps * per_step / (cores * peak * 1e9) / 60,
+            "plan_mflop_per_step": plan_flop / plan_steps / 1e6,
+            "plan_train_floor_min": plan_flop / (cores * peak * 1e9) / 60,
             "plan_target_min": TARGET_MINUTES[game],
-            "trial_steps_per_s_floor": peak * 1e9 / per_step,
+            "trial_steps_per_s_floor": peak * 1e9 / ((sample_flops + update_flops) / steps),
         }
     )
-    return row
+    return row, plan_rows
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=5, help="timed calls of each of sampling and the update")
     parser.add_argument("--games", nargs="+", default=["bandit", "blocks", "hanabi"], choices=["bandit", "blocks", "hanabi"])
+    parser.add_argument("--seeds", type=int, default=3, help="seeds of the plans whose floor is counted")
     args = parser.parse_args()
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
-    folder = Path(__file__).resolve().parent / "results"
-    rows = []
-    try:
+    rows, plans = [], {}
+    with tempfile.TemporaryDirectory() as tmp:
         for game in args.games:
-            rows.append(measure(game, args.repeats, folder))
+            row, plans[game] = measure(game, args.repeats, Path(tmp), args.seeds)
+            rows.append(row)
+            print(pd.DataFrame(plans[game]).to_string(index=False, float_format="{:.3g}".format), flush=True)
             print(pd.DataFrame(rows).to_string(index=False, float_format="{:.3g}".format), flush=True)
-    finally:
-        (folder / "blocks-perm4.json").unlink(missing_ok=True)
-        ray.shutdown()
-    print(f"wrote {write_result('flop_floor', {'seeds_per_trial': SEEDS, 'repeats': args.repeats, 'rows': rows})}")
+    ray.shutdown()
+    result = {"seeds_per_trial": SEEDS, "plan_seeds": args.seeds, "repeats": args.repeats, "rows": rows, "plans": plans}
+    print(f"wrote {write_result('flop_floor', result)}")
 
 
 if __name__ == "__main__":
