@@ -61,8 +61,8 @@ class SelfPlayConfig(Strict):
     trajectory_diversity: NonNegativeFloat | None = Field(
         None,
         description="TrajeDi (Trajectory Diversity): train each split's pairs together as with population_entropy, "
-        "adding to each pair's loss -beta (this value) times the Jensen-Shannon divergence of the pairs' trajectory "
-        "distributions per seat (each seat's discounted local action likelihoods, estimated on the pairs' own "
+        "rewarding each pair with beta (this value, in units of a standardized advantage) times the Jensen-Shannon "
+        "divergence of the pairs' trajectory distributions per seat (each seat's discounted local action likelihoods, estimated on the pairs' own "
         "episodes); 0 trains them together with no bonus; may be combined with population_entropy",
     )
     trajectory_discount: float | None = Field(
