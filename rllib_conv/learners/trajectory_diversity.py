@@ -45,9 +45,9 @@ the batched sampler's segments (`packed/rollout.py`: per module, the episode chu
 order), and adds `beta x w` (times the member's row count, PPO's loss being a mean over
 rows) to each move's advantage: d is member i's reward, as in the paper. At an update's
 first step the gradient is exactly PPO's plus beta times the JSD's; PPO's clipping then keeps
-the bonus, like the reward, inside the trust region (a separate unclipped term pushed a
-policy far past it within one update, and cost the pairs their coordination on the bandit).
-No episode-aware minibatches, no second pass over the data, no extra forward per minibatch.
+the bonus, like the reward, inside the trust region (a separate loss term would need a
+clipping of its own), and the minibatches need no extra forward.
+No episode-aware minibatches and no second pass over the data.
 A segment cut by the end of a sample is treated as a trajectory of its own (its local
 likelihoods miss the moves beyond the cut).
 
