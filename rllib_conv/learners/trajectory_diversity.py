@@ -27,7 +27,7 @@ gradient) one, d_i acting as member i's reward:
                = (1/N) E_{tau ~ pi_i} [ sum_t grad log pi_i(a_t | s_t) w_i(tau, t) ],
     w_i(tau, t) = (1/T) sum_t' gamma^|t - t'| d_i(tau, t')
 
-(exact at gamma 1, as the paper derives; the same estimator on the local likelihoods
+(exact at gamma 1, where pi_hat is a distribution; the same estimator on the local likelihoods
 otherwise). Since E[grad log pi_i(a_t | s_t)] = 0 for every move, subtracting a constant
 from every w_i leaves the estimator unbiased; `trajectory_diversity` subtracts member i's
 mean w over its moves (a baseline), so that members whose trajectories no other member
