@@ -43,7 +43,7 @@ a sum over single moves, each weighted by a number that needs its whole episode 
 the update's episodes with the policies that sampled them, as PPO computes advantages, from
 the batched sampler's segments (`packed/rollout.py`: per module, the episode chunks in row
 order), and adds `beta x w` (times the member's row count, PPO's loss being a mean over
-rows) to each move's advantage: d is member i's reward, as in the paper. At an update's
+rows) to each move's advantage: d acts as member i's reward. At an update's
 first step the gradient is exactly PPO's plus beta times the JSD's; PPO's clipping then keeps
 the bonus, like the reward, inside the trust region (a separate loss term would need a
 clipping of its own), and the minibatches need no extra forward.
