@@ -7,6 +7,7 @@ The paper's loss, readable on its own:
 - `marginal_learner`: `MarginalPPOLearner`, PPO + lam * D (+ the head penalty) and freezing.
 - `head_penalty`: `head_size`, the head penalty H (`head_l2`, beyond the paper).
 - `population_entropy`: MEP's bonus, the entropy of several self-play pairs' mean policy (beyond the paper).
+- `trajectory_diversity`: TrajeDi's bonus, the JSD of several self-play pairs' trajectory distributions (beyond the paper).
 - `settings`: `LearnerSettings`, what the learner reads from `learner_config_dict` (light: no torch, no Ray).
 - `minibatches`: RLlib's minibatch order, as row indices.
 - `drop_bootstrap_rows`: the learner connector piece that drops PPO's bootstrap rows after GAE.

@@ -30,6 +30,15 @@ Settings come from `config.learners(learner_config_dict=...)`, the fields of
   together): `- alpha * PE` per population, PE the entropy of the members' mean policy
   (`population_entropy.population_entropy`) on every member's rows of the minibatch. PE is
   always logged, as `population_entropy/<name>`.
+- `trajectory_diversity` (float beta, default 0; not in the paper) and `trajectory_discount`
+  (gamma, default 0.5): TrajeDi's term for the same populations, `- beta * JSD`, JSD the
+  Jensen-Shannon divergence of the members' (discounted local) trajectory distributions
+  (`trajectory_diversity`): each member's per-move weights w are computed once per update on
+  its whole episodes (`plain_episode_columns`) and `beta * w` (times the member's row count)
+  is added to its moves' advantages, after PPO standardized them, so PPO's clipped surrogate
+  carries it (beta is in units of a standardized advantage). The JSD estimate is always
+  logged, once per update, as `trajectory_diversity/<name>` (on `Rollout` batches, the
+  batched sampler's).
 
 Optimizers: the stack has one Adam per group (task, the task's z layers when scaled, heads);
 gradients are clipped per replica (task) and per replica head, as each would be alone.
@@ -41,17 +50,22 @@ from __future__ import annotations
 from typing import Any
 
 import torch
+from ray.rllib.core import ALL_MODULES
 from ray.rllib.core.columns import Columns
+from ray.rllib.evaluation.postprocessing import Postprocessing
 
 from rllib_conv.learners.head_penalty import head_size
 from rllib_conv.learners.packed.fused_update import HEADS_OPTIMIZER, TASK_OPTIMIZER, Z_OPTIMIZER, FusedUpdateLearner
 from rllib_conv.learners.population_entropy import population_entropy
+from rllib_conv.learners.ppo_loss import categorical_logp_entropy
 from rllib_conv.learners.regulariser import marginal_distance
+from rllib_conv.learners.trajectory_diversity import trajectory_diversity
 from rllib_conv.modules.packed.stacked_multi import STACK_ID, HeadView, StackedOutput
 
 MARGINAL_REG_KEY = "marginal_reg"
 HEAD_L2_KEY = "head_l2"
 POPULATION_ENTROPY_KEY = "population_entropy"
+TRAJECTORY_DIVERSITY_KEY = "trajectory_diversity"
 
 
 def _cat_obs(parts: list) -> object:
@@ -99,12 +113,44 @@ class MarginalPPOLearner(FusedUpdateLearner):
             loss[HEAD_L2_KEY] = self.head_l2 * terms[HEAD_L2_KEY].sum()
         return loss
 
-    # --- MEP's population entropy (plain modules) ----------------------------------------------------------
+    # --- MEP's population entropy and TrajeDi's trajectory diversity (plain modules) -----------------------
 
     @property
     def alpha(self) -> float:
         """The population entropy's weight."""
         return float(self.settings.population_entropy)
+
+    @property
+    def beta(self) -> float:
+        """The trajectory diversity's weight."""
+        return float(self.settings.trajectory_diversity)
+
+    def plain_episode_columns(self, data: dict[str, dict], lengths: dict[str, list[int]] | None) -> dict[str, dict]:
+        """Each population's JSD on the update's episodes (logged) and, when weighted, every member's advantages plus
+        beta times its per-move weights (times its row count: PPO's loss is a mean over rows)."""
+        populations = {name: ids for name, ids in self.settings.populations.items() if all(mid in data for mid in ids)}
+        if lengths is None:
+            if self.beta > 0 and populations:
+                raise ValueError(
+                    "trajectory_diversity needs the batched sampler's Rollouts (episode structure); got RLlib episodes"
+                )
+            return {}
+        columns: dict[str, dict] = {}
+        with torch.no_grad():
+            for name, members in populations.items():
+                logp = []
+                for own in members:
+                    obs = {Columns.OBS: data[own][Columns.OBS]}
+                    actions = data[own][Columns.ACTIONS]
+                    logits = [self.module[mid].forward_train(obs)[Columns.ACTION_DIST_INPUTS] for mid in members]
+                    logp.append(torch.stack([categorical_logp_entropy(x, actions)[0] for x in logits]))
+                td = trajectory_diversity(logp, [lengths[mid] for mid in members], self.settings.trajectory_discount)
+                self.metrics.log_value((ALL_MODULES, f"{TRAJECTORY_DIVERSITY_KEY}/{name}"), td.value, reduce="mean")
+                if self.beta > 0:
+                    for mid, w in zip(members, td.weights):
+                        advantages = data[mid][Postprocessing.ADVANTAGES]
+                        columns[mid] = {Postprocessing.ADVANTAGES: advantages + self.beta * len(w) * w.to(advantages.dtype)}
+        return columns
 
     def plain_terms(self, minibatch: dict[str, dict]) -> dict[str, torch.Tensor]:
         """PE of each population on this minibatch: every member's policy on all the members' rows (with gradient when weighted)."""

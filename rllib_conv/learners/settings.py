@@ -26,6 +26,10 @@ class LearnerSettings:
     # policy it is taken of (name -> module IDs of the members' policies for one seat).
     population_entropy: float = 0.0
     populations: dict[str, list[str]] = field(default_factory=dict)
+    # TrajeDi (not in the paper): weight of the populations' trajectory JSD, and the discount of its
+    # local action likelihoods (`learners.trajectory_diversity`).
+    trajectory_diversity: float = 0.0
+    trajectory_discount: float = 0.5
 
     def config_dict(self) -> dict[str, Any]:
         """The `learner_config_dict` that carries these settings to every learner."""

@@ -27,6 +27,11 @@ alpha 0 each pair trains exactly as it would in a population of one. The learner
 (`learners.population_entropy`). The trial stops when one gate check sees every pair
 clear the gate and the full evaluation confirms it, or when the budget is spent; the pairs
 then export one by one, as separate pairs do.
+
+With `trajectory_diversity` (TrajeDi, Lupu et al., ICML 2021) the pairs train together the
+same way, and the learner adds `-beta * JSD` per seat, JSD the Jensen-Shannon divergence of
+the pairs' trajectory distributions (`learners.trajectory_diversity`, with
+`trajectory_discount`); it may be combined with `population_entropy`.
 """
 
 from __future__ import annotations
@@ -161,7 +166,7 @@ def build_selfplay_config(cfg: SelfPlayConfig) -> PPOConfig:
 
 
 def build_joint_config(cfg: SelfPlayConfig) -> PPOConfig:
-    """Return the PPOConfig training the pairs of `cfg.pair`'s split together (`population_entropy`, MEP).
+    """Return the PPOConfig training the pairs of `cfg.pair`'s split together (MEP's `population_entropy`, TrajeDi's `trajectory_diversity`).
 
     Pair k of the split plays copy k of a `ReplicatedGame` with modules `seat@<agent>#k`,
     seeded from its own seed alone (see the module docstring); the learner's populations are
@@ -192,6 +197,8 @@ def build_joint_config(cfg: SelfPlayConfig) -> PPOConfig:
         shuffle_seeds=shuffle_seeds,
         population_entropy=float(cfg.population_entropy or 0.0),
         populations=populations,
+        trajectory_diversity=float(cfg.trajectory_diversity or 0.0),
+        trajectory_discount=cfg.discount,
     )
     env_config = replicated_env_config(cfg.env, cfg.env_config, [pair_seed(cfg.seed, p) for p in pairs], BASE_SEED)
     return (
@@ -200,6 +207,16 @@ def build_joint_config(cfg: SelfPlayConfig) -> PPOConfig:
         .rl_module(rl_module_spec=MultiRLModuleSpec(rl_module_specs=specs))
         .learners(learner_class=MarginalPPOLearner, learner_config_dict=settings.config_dict())
     )
+
+
+def joint_description(cfg: SelfPlayConfig) -> str:
+    """How a split's pairs trained together, for the population's description (MEP, TrajeDi or both)."""
+    bonuses = []
+    if cfg.population_entropy is not None:
+        bonuses.append(f"population entropy {cfg.population_entropy} (MEP)")
+    if cfg.trajectory_diversity is not None:
+        bonuses.append(f"trajectory diversity {cfg.trajectory_diversity}, discount {cfg.discount} (TrajeDi)")
+    return ", each split's pairs trained together with " + " and ".join(bonuses)
 
 
 def seat_partner(module: Any, module_id: str, greedy: bool, seed: int = 0) -> PolicyPartner:
@@ -396,7 +413,7 @@ def write_population(cfg: SelfPlayConfig, results: tune.ResultGrid, folder: Path
         partner_agent=cfg.partner_agent,
         description=f"self-play partners (seat {cfg.partner_agent}), gate {cfg.gate.score} over {cfg.gate.episodes} episodes"
         + (", with each pair's start and midpoint (Fictitious Co-Play)" if cfg.fcp else "")
-        + (f", each split's pairs trained together with population entropy {cfg.population_entropy} (MEP)" if cfg.joint else ""),
+        + (joint_description(cfg) if cfg.joint else ""),
         partners=entries,
     )
     population.save(folder / POPULATION_FILE)

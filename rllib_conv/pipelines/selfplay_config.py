@@ -7,6 +7,7 @@ from typing import Any
 from pydantic import Field, NonNegativeFloat, PositiveInt, model_validator
 
 from rllib_conv.common.config_files import Strict
+from rllib_conv.learners.settings import LearnerSettings
 from rllib_conv.training.experiment import ExperimentConfig
 from rllib_conv.training.settings import EnvName, FolderName, ModelSettings, PPOSettings, RunSettings
 
@@ -30,6 +31,9 @@ class SelfPlayConfig(Strict):
     also at its start and midway, as partners of the pair's split. With `population_entropy`
     the population is Maximum-Entropy Population's (Zhao et al., AAAI 2023): the pairs of each
     split train together in one algorithm, with a bonus for the entropy of their mean policy.
+    With `trajectory_diversity` the population is TrajeDi's (Lupu et al., ICML 2021): the
+    same joint training, with a bonus for the Jensen-Shannon divergence of the pairs'
+    trajectory distributions (the two bonuses may be combined).
     """
 
     name: FolderName = "selfplay"
@@ -54,6 +58,21 @@ class SelfPlayConfig(Strict):
         "pairs' mean policy per seat on the same observations; 0 trains them together with no bonus (then each "
         "pair trains as it would in a population of one); unset: each pair is a trial of its own",
     )
+    trajectory_diversity: NonNegativeFloat | None = Field(
+        None,
+        description="TrajeDi (Trajectory Diversity): train each split's pairs together as with population_entropy, "
+        "rewarding each pair with beta (this value, in units of a standardized advantage) times the Jensen-Shannon "
+        "divergence of the pairs' trajectory distributions per seat (each seat's discounted local action likelihoods, estimated on the pairs' own "
+        "episodes); 0 trains them together with no bonus; may be combined with population_entropy",
+    )
+    trajectory_discount: float | None = Field(
+        None,
+        ge=0.0,
+        le=1.0,
+        description="TrajeDi's discount gamma of the local action likelihood prod_t' pi(a_t'|s_t')^(gamma^|t-t'|), in "
+        "[0, 1]: 0 compares single moves, 1 whole trajectories; only with trajectory_diversity; unset: "
+        f"{LearnerSettings.trajectory_discount} (our choice, not the paper's)",
+    )
     model: ModelSettings = Field(default_factory=ModelSettings)
     ppo: PPOSettings = Field(default_factory=PPOSettings)
     run: RunSettings = Field(default_factory=RunSettings)
@@ -61,14 +80,22 @@ class SelfPlayConfig(Strict):
 
     @model_validator(mode="after")
     def _one_generator(self) -> "SelfPlayConfig":
-        if self.fcp and self.population_entropy is not None:
-            raise ValueError("fcp and population_entropy cannot be combined: choose FCP's or MEP's partners")
+        for key in ("population_entropy", "trajectory_diversity"):
+            if self.fcp and getattr(self, key) is not None:
+                raise ValueError(f"fcp and {key} cannot be combined: FCP's pairs train alone, {key}'s together")
+        if self.trajectory_discount is not None and self.trajectory_diversity is None:
+            raise ValueError("trajectory_discount is TrajeDi's: set trajectory_diversity too")
         return self
 
     @property
+    def discount(self) -> float:
+        """TrajeDi's discount: `trajectory_discount`, else the learner's default."""
+        return LearnerSettings.trajectory_discount if self.trajectory_discount is None else self.trajectory_discount
+
+    @property
     def joint(self) -> bool:
-        """Whether the pairs of each split train together (MEP, `population_entropy` set)."""
-        return self.population_entropy is not None
+        """Whether the pairs of each split train together (MEP or TrajeDi: `population_entropy` or `trajectory_diversity` set)."""
+        return self.population_entropy is not None or self.trajectory_diversity is not None
 
     def resolve(self) -> "SelfPlayConfig":
         """Return a copy with the game's defaults filled in (see `ExperimentConfig.resolve`)."""

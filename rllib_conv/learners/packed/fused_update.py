@@ -8,7 +8,8 @@ batch (RLlib's learner connector, or `rollout_train_batch` for the batched sampl
 shuffles), computes `ppo_loss` for every replica and head of a packed ego at once (a
 `StackedEgoMultiRLModule`: one [K, H, B] forward) plus the subclass's terms on the stack
 (`stack_terms`, e.g. the marginal regulariser; on plain modules such as self-play seats
-`plain_terms`, e.g. MEP's population entropy), and clips and steps every optimizer with one
+`plain_terms`, e.g. MEP's population entropy, with per-row columns computed once per update
+on whole episodes, `plain_episode_columns`, e.g. TrajeDi's bonus to the advantages), and clips and steps every optimizer with one
 `FusedAdamStep`. Metrics are logged once per update.
 
 This is the one update that trains. RLlib's own loop is kept only as the reference it is
@@ -33,7 +34,7 @@ from ray.rllib.evaluation.postprocessing import Postprocessing
 from rllib_conv.learners.drop_bootstrap_rows import DropBootstrapRows
 from rllib_conv.learners.packed.fused_step import FusedAdamStep, clip_segments
 from rllib_conv.learners.packed.minibatches import CyclicMinibatchPlan, ModulePermuters, global_permute
-from rllib_conv.learners.packed.rollout import Rollout, rollout_train_batch
+from rllib_conv.learners.packed.rollout import Rollout, rollout_train_batch, segment_lengths
 from rllib_conv.learners.ppo_loss import PPOLossTerms, ppo_loss
 from rllib_conv.learners.settings import LearnerSettings
 from rllib_conv.modules.multi import TASK_ID, replica_id
@@ -138,6 +139,16 @@ class FusedUpdateLearner(PPOTorchLearner):
         """Whether `plain_loss` needs `plain_terms` with gradients; else they are logged from the update's last minibatch."""
         return False
 
+    def plain_episode_columns(self, data: dict[str, dict], lengths: dict[str, list[int]] | None) -> dict[str, dict]:
+        """Per-row columns of plain modules that replace or join theirs (module ID -> column -> [rows]), computed once
+        per update on its whole episodes before the minibatches slice them; none here.
+
+        `data` holds every module's rows in sampled order, `lengths` each module's segments
+        (episode chunks) laid end to end over them, or None where the batch did not come
+        from `Rollout`s (RLlib's episodes).
+        """
+        return {}
+
     def _log_stack_terms(self, terms: dict[str, torch.Tensor]) -> None:
         """Log each term per replica under `task#r` and its mean over replicas under ALL_MODULES."""
         for key, per_replica in terms.items():
@@ -196,6 +207,11 @@ class FusedUpdateLearner(PPOTorchLearner):
                 del train_batch.policy_batches[module_id]
         if train_batch.policy_batches:
             data = {mid: {c: b[c] for c in TRAIN_COLUMNS} for mid, b in train_batch.policy_batches.items()}
+            if not self.stacked:
+                episodes = training_data.episodes
+                rollouts = bool(episodes) and all(isinstance(e, Rollout) for e in episodes)
+                for mid, cols in self.plain_episode_columns(data, segment_lengths(episodes) if rollouts else None).items():
+                    data[mid].update(cols)
             sizes = {mid: len(b) for mid, b in train_batch.policy_batches.items()}
             shuffle = shuffle_batch_per_epoch and num_epochs > 1
             plan = CyclicMinibatchPlan(sizes, minibatch_size or max(sizes.values()), num_epochs, shuffle, self._permute)

@@ -114,6 +114,15 @@ def _module_columns(parts: list[ModuleRows]) -> dict[str, np.ndarray]:
     }
 
 
+def segment_lengths(rollouts: list[Rollout]) -> dict[str, list[int]]:
+    """Per module, the number of moves of each of its segments, in the order of its rows in `rollout_train_batch`."""
+    out: dict[str, list[int]] = {}
+    for r in rollouts:
+        for mid, rows in r.modules.items():
+            out.setdefault(mid, []).extend(rows.lengths)
+    return out
+
+
 def rollout_train_batch(rollouts: list[Rollout], multi_module: Any, gamma: float, lambda_: float) -> MultiAgentBatch:
     """The PPO train batch of `rollouts` (RLlib's GAE and standardization, bootstrap rows dropped), per learning module.
 
