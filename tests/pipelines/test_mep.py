@@ -22,13 +22,19 @@ from rllib_conv.pipelines.selfplay import (
 from rllib_conv.pipelines.selfplay_config import SelfPlayConfig
 
 MEP_YAML = "tune_configs/selfplay_bandit_mep.yaml"
+TRAJEDI_YAML = "tune_configs/selfplay_bandit_trajedi.yaml"
 OBS, MASK = bandit_states({"symmetric": 4})
 
 
-def mep_config(**overrides) -> SelfPlayConfig:
-    raw = config_files.load(MEP_YAML, [], schema=SelfPlayConfig)
+def joint_config(yaml: str, **overrides) -> SelfPlayConfig:
+    """The self-play config `yaml` (a joint generator's example) with `overrides`, resolved."""
+    raw = config_files.load(yaml, [], schema=SelfPlayConfig)
     raw.update(overrides)
     return SelfPlayConfig.model_validate(raw).resolve()
+
+
+def mep_config(**overrides) -> SelfPlayConfig:
+    return joint_config(MEP_YAML, **overrides)
 
 
 def trained_weights(cfg: SelfPlayConfig, iterations: int) -> tuple[dict, dict]:
@@ -84,19 +90,21 @@ def test_bad_values_are_one_clear_error(sets, message, capsys, tmp_path) -> None
 
 
 @pytest.mark.slow
-def test_alpha_zero_trains_each_pair_as_a_population_of_one(ray_session) -> None:
-    """Known answer: with no bonus, pairs packed into one algorithm are independent runs, to the bit."""
-    before, joint = trained_weights(mep_config(train_pairs=2, test_pairs=0, seed=0, population_entropy=0.0), 3)
+@pytest.mark.parametrize("yaml, bonus", [(MEP_YAML, "population_entropy"), (TRAJEDI_YAML, "trajectory_diversity")])
+def test_a_zero_bonus_trains_each_pair_as_a_population_of_one(ray_session, yaml: str, bonus: str) -> None:
+    """Known answer: with no bonus (MEP's alpha, TrajeDi's beta), pairs packed into one algorithm are independent runs, to
+    the bit (TrajeDi's JSD is only logged); with the bonus the same run ends elsewhere."""
+    config = lambda seed, pairs, weight: joint_config(yaml, train_pairs=pairs, test_pairs=0, seed=seed, **{bonus: weight})  # noqa: E731
+    before, joint = trained_weights(config(0, 2, 0.0), 3)
     for k in (0, 1):
-        _, alone = trained_weights(mep_config(train_pairs=1, test_pairs=0, seed=k, population_entropy=0.0), 3)
+        _, alone = trained_weights(config(k, 1, 0.0), 3)
         for seat in ("seat@player_0", "seat@player_1"):
             for name, value in joint[f"{seat}#{k}"].items():
                 torch.testing.assert_close(value, alone[f"{seat}#0"][name], rtol=0, atol=1e-7)
                 assert not torch.equal(value, before[f"{seat}#{k}"][name]) or name.endswith("bias")
-    # The bonus does reach every member: the same run with alpha > 0 ends elsewhere.
-    _, bonus = trained_weights(mep_config(train_pairs=2, test_pairs=0, seed=0, population_entropy=1.0), 3)
+    _, weighted = trained_weights(config(0, 2, 1.0), 3)
     for mid in joint:
-        assert not torch.allclose(bonus[mid]["pi_out.0.weight"], joint[mid]["pi_out.0.weight"], atol=1e-4)
+        assert not torch.allclose(weighted[mid]["pi_out.0.weight"], joint[mid]["pi_out.0.weight"], atol=1e-4)
 
 
 @pytest.mark.slow

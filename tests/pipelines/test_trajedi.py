@@ -17,15 +17,11 @@ from rllib_conv.learners.marginal_learner import TRAJECTORY_DIVERSITY_KEY
 from rllib_conv.learners.settings import LearnerSettings
 from rllib_conv.pipelines.selfplay import build_joint_config, joint_description, selfplay_score, split_pairs, trial_pairs
 from rllib_conv.pipelines.selfplay_config import SelfPlayConfig
-from tests.pipelines.test_mep import greedy_arms, trained_weights
-
-TRAJEDI_YAML = "tune_configs/selfplay_bandit_trajedi.yaml"
+from tests.pipelines.test_mep import TRAJEDI_YAML, greedy_arms, joint_config
 
 
 def trajedi_config(**overrides) -> SelfPlayConfig:
-    raw = config_files.load(TRAJEDI_YAML, [], schema=SelfPlayConfig)
-    raw.update(overrides)
-    return SelfPlayConfig.model_validate(raw).resolve()
+    return joint_config(TRAJEDI_YAML, **overrides)
 
 
 def test_each_split_is_one_trial_and_the_learner_gets_the_weight() -> None:
@@ -68,22 +64,6 @@ def test_help_lists_the_keys_from_the_schema(capsys) -> None:
     out = " ".join(capsys.readouterr().out.split())
     for key in ("trajectory_diversity", "trajectory_discount"):
         assert " ".join(SelfPlayConfig.model_fields[key].description.split()) in out
-
-
-@pytest.mark.slow
-def test_beta_zero_trains_each_pair_as_a_population_of_one(ray_session) -> None:
-    """Known answer: with no bonus, pairs packed into one algorithm are independent runs, to the bit (the JSD is only
-    logged); with beta > 0 the same run ends elsewhere."""
-    before, joint = trained_weights(trajedi_config(train_pairs=2, test_pairs=0, seed=0, trajectory_diversity=0.0), 3)
-    for k in (0, 1):
-        _, alone = trained_weights(trajedi_config(train_pairs=1, test_pairs=0, seed=k, trajectory_diversity=0.0), 3)
-        for seat in ("seat@player_0", "seat@player_1"):
-            for name, value in joint[f"{seat}#{k}"].items():
-                torch.testing.assert_close(value, alone[f"{seat}#0"][name], rtol=0, atol=1e-7)
-                assert not torch.equal(value, before[f"{seat}#{k}"][name]) or name.endswith("bias")
-    _, bonus = trained_weights(trajedi_config(train_pairs=2, test_pairs=0, seed=0, trajectory_diversity=1.0), 3)
-    for mid in joint:
-        assert not torch.allclose(bonus[mid]["pi_out.0.weight"], joint[mid]["pi_out.0.weight"], atol=1e-4)
 
 
 def _train(cfg: SelfPlayConfig, iterations: int) -> tuple[list[list[int]], list[float], float]:
