@@ -14,10 +14,10 @@ observation, not the training partners, not the returns.
 from __future__ import annotations
 
 from collections import Counter
-from typing import Any
 
 import numpy as np
 
+from rllib_conv.adaptation.plan_player import MoveOrFallback
 from rllib_conv.envs.convention_keys import KeyFn
 from rllib_conv.partners.base import Partner
 
@@ -44,33 +44,14 @@ class ContextLookup:
         return LookupPlayer(name, self, fallback)
 
 
-class LookupPlayer(Partner):
+class LookupPlayer(MoveOrFallback):
     """Plays `lookup`'s move where the partner has been seen (and the move is legal), else `fallback`'s."""
 
     kind = "context_lookup"
 
     def __init__(self, name: str, lookup: ContextLookup, fallback: Partner) -> None:
-        super().__init__(name)
-        self.lookup, self.fallback = lookup, fallback
+        super().__init__(name, fallback)
+        self.lookup = lookup
 
-    def _looked_up(self, observation: np.ndarray, action_mask: np.ndarray) -> int | None:
-        action = self.lookup.seen(observation)
-        return action if action is not None and action_mask[action] else None
-
-    def act(self, observation: np.ndarray, action_mask: np.ndarray) -> int:
-        action = self._looked_up(observation, action_mask)
-        return self.fallback.act(observation, action_mask) if action is None else action
-
-    def action_probs(self, observations: np.ndarray, action_masks: np.ndarray) -> np.ndarray:
-        out = np.array(self.fallback.action_probs(observations, action_masks), dtype=np.float64)
-        for b, (obs, mask) in enumerate(zip(np.asarray(observations), np.asarray(action_masks))):
-            action = self._looked_up(obs, mask)
-            if action is not None:
-                out[b] = np.eye(out.shape[1])[action]
-        return out
-
-    def seed(self, seed: int | None) -> None:
-        self.fallback.seed(seed)
-
-    def params(self) -> dict[str, Any]:
-        return {"fallback": self.fallback.name}
+    def move(self, observation: np.ndarray) -> int | None:
+        return self.lookup.seen(observation)

@@ -16,30 +16,32 @@ from rllib_conv.envs.best_response import Plan
 from rllib_conv.partners.base import Partner
 
 
-class PlanPlayer(Partner):
-    """Plays `plan`'s move wherever it has a legal one, else `fallback`'s; the plan never changes while it plays."""
+class MoveOrFallback(Partner):
+    """Plays its own `move` wherever that is a legal move, else `fallback`'s (the controls' players: a plan, a lookup)."""
 
-    kind = "plan"
-
-    def __init__(self, name: str, plan: Plan, fallback: Partner) -> None:
+    def __init__(self, name: str, fallback: Partner) -> None:
         super().__init__(name)
-        self.plan, self.fallback = plan, fallback
+        self.fallback = fallback
 
-    def planned(self, observation: np.ndarray, action_mask: np.ndarray) -> int | None:
-        """The plan's move in `observation` if it has a legal one, else None."""
-        action = self.plan.act(np.asarray(observation))
+    def move(self, observation: np.ndarray) -> int | None:
+        """This player's own move in `observation`, or None where it has none."""
+        raise NotImplementedError
+
+    def chosen(self, observation: np.ndarray, action_mask: np.ndarray) -> int | None:
+        """`move` in `observation` if it is legal, else None."""
+        action = self.move(np.asarray(observation))
         return action if action is not None and action_mask[action] else None
 
     def act(self, observation: np.ndarray, action_mask: np.ndarray) -> int:
-        planned = self.planned(observation, action_mask)
-        return self.fallback.act(observation, action_mask) if planned is None else planned
+        action = self.chosen(observation, action_mask)
+        return self.fallback.act(observation, action_mask) if action is None else action
 
     def action_probs(self, observations: np.ndarray, action_masks: np.ndarray) -> np.ndarray:
         out = np.array(self.fallback.action_probs(observations, action_masks), dtype=np.float64)
         for b, (obs, mask) in enumerate(zip(np.asarray(observations), np.asarray(action_masks))):
-            planned = self.planned(obs, mask)
-            if planned is not None:
-                out[b] = np.eye(out.shape[1])[planned]
+            action = self.chosen(obs, mask)
+            if action is not None:
+                out[b] = np.eye(out.shape[1])[action]
         return out
 
     def seed(self, seed: int | None) -> None:
@@ -47,3 +49,16 @@ class PlanPlayer(Partner):
 
     def params(self) -> dict[str, Any]:
         return {"fallback": self.fallback.name}
+
+
+class PlanPlayer(MoveOrFallback):
+    """Plays `plan`'s move wherever it has a legal one, else `fallback`'s; the plan never changes while it plays."""
+
+    kind = "plan"
+
+    def __init__(self, name: str, plan: Plan, fallback: Partner) -> None:
+        super().__init__(name, fallback)
+        self.plan = plan
+
+    def move(self, observation: np.ndarray) -> int | None:
+        return self.plan.act(observation)
