@@ -160,6 +160,15 @@ class ConventionPosterior:
             self._hypotheses = self._posterior()
         return self._hypotheses
 
+    def whole(self) -> np.ndarray:
+        """[K]: the posterior of whole convention k given that the partner follows one whole (their prior is even).
+
+        Computed from the whole conventions' own likelihoods, so it stays defined however strongly the evidence favours
+        recombination (`hypotheses()[:-1]` may then underflow to zero): PLASTIC's belief over known types
+        (`adaptation.plastic`).
+        """
+        return np.exp(self._whole - logsumexp(self._whole))
+
     def _posterior(self) -> np.ndarray:
         recombined = self._unkeyed + sum(float(logsumexp(self._log_part_prior + part)) for part in self._parts.values())
         log_post = self._log_prior + np.append(self._whole, recombined)

@@ -16,7 +16,15 @@ from typing import Any
 
 from pettingzoo import ParallelEnv
 
-from rllib_conv.adaptation import context_lookup, convention_posterior, counts_planner, fine_tune_guard, head_pick, prior_planner
+from rllib_conv.adaptation import (
+    context_lookup,
+    convention_posterior,
+    counts_planner,
+    fine_tune_guard,
+    head_pick,
+    plastic,
+    prior_planner,
+)
 from rllib_conv.common.adapters import (
     ADAPTERS,
     CONTROLS,
@@ -26,6 +34,7 @@ from rllib_conv.common.adapters import (
     LOOKUP,
     OLD_SPELLINGS,
     PICK,
+    PLASTIC,
     POSTERIOR,
     PRIOR_PLANNER,
     Adapter,
@@ -40,6 +49,7 @@ from rllib_conv.common.adapters import (
 from rllib_conv.common.methods import Method
 from rllib_conv.envs.best_response import best_response
 from rllib_conv.envs.registry import game, make
+from rllib_conv.envs.seat_views import seat_view
 
 __all__ = [
     "ADAPTERS",
@@ -51,6 +61,7 @@ __all__ = [
     "LOOKUP",
     "OLD_SPELLINGS",
     "PICK",
+    "PLASTIC",
     "POSTERIOR",
     "PRIOR_PLANNER",
     "Adapter",
@@ -61,6 +72,7 @@ __all__ = [
     "canonical",
     "check_game",
     "check_information",
+    "check_seats",
     "check_trained_ego",
     "choose",
     "names",
@@ -74,6 +86,7 @@ IMPLEMENTED_BY = {
     LOOKUP: context_lookup.ContextLookup,
     COUNTS_PLANNER: counts_planner.CountsPlanner,
     PRIOR_PLANNER: prior_planner.PriorPlanner,
+    PLASTIC: plastic.Plastic,
 }
 
 
@@ -85,11 +98,35 @@ def check_game(start: str, game_name: str, env_config: dict[str, Any], ego_agent
             raise ValueError(f"head_init {name!r} looks moves up by situation, but {game_name!r} has no convention key")
         if need == "best_response" and best_response(game_name, env_config, ego_agent) is None:
             raise ValueError(f"head_init {name!r} plans a best response, but {game_name!r} has no planner for seat {ego_agent!r}")
+        if need == "seat_view":
+            reads = f"head_init {name!r} reads each partner's moves in its situation as the ego's own observation shows it"
+            if record.seat_view is None:
+                raise ValueError(f"{reads}, and {game_name!r} cannot rebuild a partner's situation from it (no seat view)")
+            agents = make(game_name, **env_config).possible_agents
+            blind = [a for a in agents if a != ego_agent and seat_view(game_name, env_config, ego_agent, a) is None]
+            if blind:
+                raise ValueError(
+                    f"{reads}, but in {game_name!r} with these settings it does not show the situation of {blind[0]!r}"
+                    + (f" (a partner sees {record.partner_sees})" if record.partner_sees else "")
+                )
         if need == "simultaneous" and not isinstance(make(game_name, **env_config), ParallelEnv):
             raise ValueError(
                 f"head_init {name!r} keys the partner's moves by the ego's observation of the same step, but in {game_name!r} "
                 "the seats take turns"
             )
+
+
+def check_seats(start: str, game_name: str, seats: int) -> None:
+    """ValueError unless adapter `start` runs in a game of `seats` seats (more than two: `Adapter.many_seats`)."""
+    record = adapter(start)
+    if seats > 2 and not record.many_seats:
+        able = [a.name for a in ADAPTERS.values() if a.role == "start" and a.many_seats and "adapt" in a.uses]
+        what = "guard: true" if record.role == "guard" else f"head_init {record.name!r}"
+        raise ValueError(
+            f"{what} adapts to one partner in a game of two seats; {game_name!r} has {seats} "
+            f"(a new partner is a team there): "
+            + ("leave it out" if record.role == "guard" else f"use head_init {' or '.join(able)}")
+        )
 
 
 def check_information(start: str, game_name: str, surface: Surface = "adapt") -> None:

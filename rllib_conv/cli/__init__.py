@@ -124,7 +124,7 @@ def _adapt(command: Callable[..., argparse.ArgumentParser]) -> None:
     p.add_argument("--split", default="test", choices=["train", "test"], help=d("split"))
     p.add_argument("--method", choices=["scratch"], help=d("method"))
     p.add_argument("--frozen-task", action="store_true", help="keep the task module frozen while adapting (train_task: false)")
-    p.add_argument("--head-init", default="fresh", choices=["fresh", "pick", "posterior"], help=d("head_init"))
+    p.add_argument("--head-init", default="fresh", choices=["fresh", "pick", "posterior", "plastic"], help=d("head_init"))
     p.add_argument("--pick-steps", type=positive_int, help=d("pick_steps"))
     p.add_argument("--guard", action="store_true", help=d("guard"))
     run_args(p), log_arg(p)

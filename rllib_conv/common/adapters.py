@@ -1,7 +1,7 @@
 """The adapters' vocabulary: every way a trained ego adapts to a new partner, by one name, with what it uses.
 
 One record per adapter. `rllib-conv adapt` chooses one to start from (`head_init`:
-`fresh`, `pick` or `posterior`) and may add the `guard`; the study server (`rllib-conv
+`fresh`, `pick`, `posterior`, the posterior's controls or `plastic`) and may add the `guard`; the study server (`rllib-conv
 play --adapter`) offers `fresh` and `posterior`; the report names them by the same words.
 Each record says, as named fields, what information the adapter uses beyond the trained
 ego, on each surface that offers it (`Uses`): the new partner's actions, its returns, the
@@ -32,10 +32,13 @@ LOOKUP = "lookup"
 COUNTS_PLANNER = "counts-planner"
 PRIOR_PLANNER = "prior-planner"
 CONTROLS = (LOOKUP, COUNTS_PLANNER, PRIOR_PLANNER)
+# The field's ad hoc teamwork reference (Barrett & Stone's PLASTIC): a belief over known partner types.
+PLASTIC = "plastic"
 
 # What a game must have for an adapter (`Adapter.needs_game`): its record's convention key, a best-response
-# planner for the ego's seat, or simultaneous moves (a parallel env: each step's situation is one both seats see).
-GameNeed = Literal["convention_key", "best_response", "simultaneous"]
+# planner for the ego's seat, simultaneous moves (a parallel env: each step's situation is one both seats see), or
+# a view of every partner seat rebuilt from the ego's own observation (`envs.seat_views`).
+GameNeed = Literal["convention_key", "best_response", "simultaneous", "seat_view"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -82,6 +85,8 @@ class Adapter:
     guards: tuple[str, ...] = ()
     # What the game must have for it (`GameNeed`); a game without is refused before anything runs.
     needs_game: tuple[GameNeed, ...] = ()
+    # Runs in games of more than two seats (a new partner there is a team, one per partner seat); False: refused there.
+    many_seats: bool = False
 
 
 ADAPTERS: dict[str, Adapter] = {
@@ -98,6 +103,7 @@ ADAPTERS: dict[str, Adapter] = {
                 "play": Uses(partner_actions=True, game_model=True),  # a table of logits stepped towards hindsight targets
             },
             module="rllib_conv/pipelines/adapt.py (adapt), rllib_conv/play/agent.py (play)",
+            many_seats=True,
         ),
         Adapter(
             name=PICK,
@@ -175,6 +181,21 @@ ADAPTERS: dict[str, Adapter] = {
             uses={"adapt": Uses(training_policies=True, game_model=True)},
             module="rllib_conv/adaptation/prior_planner.py",
             needs_game=("best_response",),
+        ),
+        Adapter(
+            name=PLASTIC,
+            title="PLASTIC (Barrett & Stone): a belief over the training partners' types per partner seat, from their moves, "
+            "playing the trained ego's head for the most probable team",
+            in_paper=False,
+            role="start",
+            needs_partner_heads=True,
+            # Each partner seat's moves, in that seat's situation as rebuilt from the ego's own observation (`seat_view`,
+            # a model of the game), judged against the training partners' policies; never a partner's own observation,
+            # never the returns (PPO trains the fresh head beside it on the same env steps, but it is never played).
+            uses={"adapt": Uses(partner_actions=True, training_policies=True, game_model=True)},
+            module="rllib_conv/adaptation/plastic.py",
+            needs_game=("seat_view",),
+            many_seats=True,
         ),
     )
 }

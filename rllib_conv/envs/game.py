@@ -39,6 +39,9 @@ ExactReturnFn = Callable[[dict[str, Any], dict[str, Any]], float | None]
 # (partner policy with action_probs, env_config, ego_agent) -> the expected score of the ego's best response to that
 # partner, exact, or None where it cannot be known (a partner that does not say what it draws from, a seat not planned).
 BestResponseReturnFn = Callable[[Any, dict[str, Any], str], float | None]
+# (env_config, ego_agent, agent) -> what seat `agent` observes and may do, as the ego's own observation shows it
+# (`seat_views.SeatView`), or None where the ego's observation does not show it (a partial view).
+SeatViewFactory = Callable[[dict[str, Any], str, str], Any]
 
 
 @dataclass(frozen=True)
@@ -65,6 +68,10 @@ class GameRecord:
     # the partner sees nothing the ego cannot know from its own observations and moves, so an adapter may read
     # the partner's moves in the situation the partner saw (`adaptation.registry.check_information`).
     partner_sees: str | None = None
+    # Another seat's observation and legal moves rebuilt from the ego's own observation (and move) by the game's rules
+    # (`seat_views`): an adapter that models the partners' moves reads them in that situation, on equal information.
+    # None: the game cannot (adapters that need it are refused).
+    seat_view: SeatViewFactory | None = None
     max_score: float | None = None  # the best score an episode can reach (report tables)
     # Env settings every measured score uses, over the training ones (`registry.make_scored`): Overcooked
     # trains on a shaped reward but is scored on soups delivered alone, as Carroll et al. report it.

@@ -125,9 +125,9 @@ class ReplicatedGame(MultiAgentEnv):
         for env, ego in zip(self.copies, egos):
             env.record_seen_moves(ego)
 
-    def take_seen_moves(self) -> list[tuple[np.ndarray, np.ndarray, np.ndarray] | None]:
-        """Per copy: the moves kept since the last call (`SeenMoves.take`), None where none."""
-        return [env.take_seen_moves() for env in self.copies]
+    def take_seen_moves(self, seated: bool = False) -> list[tuple[np.ndarray, ...] | None]:
+        """Per copy: the moves kept since the last call (`SeenMoves.take`, or with `seated` `take_seated`), None where none."""
+        return [env.take_seen_moves(seated) for env in self.copies]
 
     def get_rng_state(self) -> list[dict | None]:
         """Every copy's game RNG state, for exact resumes."""

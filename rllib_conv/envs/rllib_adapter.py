@@ -122,9 +122,11 @@ class PettingZooMultiAgentEnv(MultiAgentEnv):
         """From now on keep the other seats' moves as seat `ego` sees them (`envs.seen_moves`), until `take_seen_moves`."""
         self._seen = SeenMoves(ego)
 
-    def take_seen_moves(self) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-        """The moves kept since the last call (`SeenMoves.take`); None if none or not recording."""
-        return self._seen.take() if self._seen is not None else None
+    def take_seen_moves(self, seated: bool = False) -> tuple[np.ndarray, ...] | None:
+        """The moves kept since the last call (`SeenMoves.take`, or with `seated` `SeenMoves.take_seated`); None if none or not recording."""
+        if self._seen is None:
+            return None
+        return self._seen.take_seated() if seated else self._seen.take()
 
     def _seen_start(self, obs: dict[str, dict[str, np.ndarray]]) -> dict[str, dict[str, np.ndarray]]:
         seen = self._seen

@@ -21,7 +21,7 @@ class SeenMoves:
         self.ego = ego
         self._observation: np.ndarray | None = None
         self._action = -1
-        self._rows: list[tuple[np.ndarray, int, int]] = []
+        self._rows: list[tuple[np.ndarray, int, int, str]] = []
 
     def start(self) -> None:
         """A new episode: the ego has neither observed nor moved in it."""
@@ -37,12 +37,22 @@ class SeenMoves:
         if agent == self.ego:
             self._action = int(action)
         elif self._observation is not None:  # a partner moving before the ego saw anything: nothing to key it by
-            self._rows.append((self._observation, self._action, int(action)))
+            self._rows.append((self._observation, self._action, int(action), agent))
 
     def take(self) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         """(ego observations [N, d], ego moves [N], partner moves [N]) recorded since the last call; None if none."""
+        seated = self.take_seated()
+        return None if seated is None else seated[:3]
+
+    def take_seated(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+        """`take`, and last the seat [N] (agent names) that made each move: games of more than two seats."""
         rows, self._rows = self._rows, []
         if not rows:
             return None
-        observations, ego_moves, moves = zip(*rows)
-        return np.stack(observations), np.array(ego_moves, dtype=np.int64), np.array(moves, dtype=np.int64)
+        observations, ego_moves, moves, agents = zip(*rows)
+        return (
+            np.stack(observations),
+            np.array(ego_moves, dtype=np.int64),
+            np.array(moves, dtype=np.int64),
+            np.array(agents, dtype=object),
+        )

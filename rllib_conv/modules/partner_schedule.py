@@ -3,6 +3,8 @@
 - `RoundRobin` (the default, the paper's): partners in turn, episode by episode.
 - `WeightedPartners`: each episode's partner drawn with the given weights, from a
   generator seeded from the replica's seed (so a replica draws as it would alone).
+- `FixedTeam`: the same team every episode (one partner per partner seat, per replica):
+  adapting to one new team in a game of more than two seats.
 - `PartnerFunction`: a function of the user's, named by import path
   (`package.module:function` or `package.module.function`), called as
   `function(episode, partners, rng) -> partner name` with the episode's number (0, 1, ...),
@@ -32,6 +34,22 @@ class RoundRobin:
 
     def index(self, replica: int, episode: int, partners: list[str], seat: int = 0) -> int:
         return (episode // len(partners) ** seat) % len(partners)
+
+    def get_state(self) -> dict[str, Any]:
+        return {}
+
+    def set_state(self, state: dict[str, Any]) -> None:
+        pass
+
+
+class FixedTeam:
+    """Every episode replica r seats `teams[r][j]` in partner seat j (names among the replica's partners)."""
+
+    def __init__(self, teams: list[tuple[str, ...]]) -> None:
+        self.teams = [tuple(t) for t in teams]
+
+    def index(self, replica: int, episode: int, partners: list[str], seat: int = 0) -> int:
+        return partners.index(self.teams[replica][seat])
 
     def get_state(self) -> dict[str, Any]:
         return {}

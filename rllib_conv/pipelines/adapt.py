@@ -18,9 +18,18 @@ new partner only from its moves in those env steps as the ego's seat sees them
 (`envs.seen_moves`: the ego's own observation and move, then the partner's action) and are
 evaluated playing by them, the trained ego's task module alone where they have no move;
 PPO still trains the fresh head beside them, so every curve spends the same env steps, but
-they never play it. With `guard: true` (fresh or posterior) the ego
+they never play it. `head_init: plastic` (`adaptation.plastic`) does the same with PLASTIC's
+belief over which training partner sits in each partner seat, from each seat's moves in its
+situation as the ego's own observation shows it (`envs.seat_views`), and is evaluated playing
+the trained ego's head for the most probable team. With `guard: true` (fresh or posterior) the ego
 is evaluated as it was before any update until the adapting one is measured better on its
 own training rollouts (`fine_tune_guard`); the rows then say whether the prior was kept.
+
+In a game of more than two seats a new partner is a team, one partner per partner seat
+(`H3+H4`; a single name sits in every seat): the curve's partner is the team's name, its
+fresh head `ego@<team>`, every episode seats that team, and it is evaluated with the team in
+its seats. By default a curve adapts to every team of the split. The adapters that choose among
+one partner's heads or situations (pick, posterior, the controls) and the guard are refused there.
 
 Curves train in packs: one Tune trial (`AdaptTrainable`) holds up to `max_pack` curves of
 egos that differ only in seed and partner, as replicas of one algorithm (each with its own
@@ -30,11 +39,13 @@ writes its curves (`curves.csv` in its trial folder) when it finishes; a run tha
 killed and started again keeps finished packs and runs the others again from their start.
 
 Output: one tidy CSV per adapt config, one row per evaluation point: run, method, lam,
-z_dim, seed, partner, steps, mean_return, stderr, exact_return (one-step games only).
+z_dim, seed, partner, steps, mean_return, stderr, exact_return (one-step games only), and
+where an adapter chooses a trained head (pick, posterior, plastic), `picked`.
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Hashable, Sequence
 from dataclasses import dataclass
@@ -56,17 +67,21 @@ from rllib_conv.adaptation.convention_posterior import (
 from rllib_conv.adaptation.counts_planner import CountsPlanner
 from rllib_conv.adaptation.fine_tune_guard import FineTuneGuard
 from rllib_conv.adaptation.head_pick import HeadPick, pick_head
+from rllib_conv.adaptation.plastic import Plastic
 from rllib_conv.adaptation.prior_planner import PriorPlanner
 from rllib_conv.adaptation.registry import (
     CONTROLS,
     FRESH,
+    GUARD,
     LOOKUP,
     PICK,
+    PLASTIC,
     POSTERIOR,
     PRIOR_PLANNER,
     adapter,
     check_game,
     check_information,
+    check_seats,
     check_trained_ego,
 )
 from rllib_conv.common.atomic_files import replaced_atomically
@@ -74,15 +89,18 @@ from rllib_conv.common.config_files import Checked
 from rllib_conv.common.methods import method
 from rllib_conv.common.run_folders import ADAPT, RL_MODULE_DIR, trial_folders
 from rllib_conv.common.seeds import pick_seed
+from rllib_conv.envs.seat_views import seat_view
 from rllib_conv.modules import partner_id
-from rllib_conv.modules.multi import AGG_HEAD_ID, TASK_ID, replica_id
+from rllib_conv.modules.multi import AGG_HEAD_ID, TASK_ID, TEAM_SEPARATOR, replica_id, team_name
 from rllib_conv.modules.packed.stacked_multi import STACK_ID
+from rllib_conv.partners.base import Partner
+from rllib_conv.partners.population import PartnerEntry, Population
 from rllib_conv.pipelines.adapt_config import AdaptConfig
 from rllib_conv.training.algorithm import Replica, build_algorithm, packing_key
 from rllib_conv.training.callbacks import STEPS_DONE, STEPS_TOTAL
 from rllib_conv.training.checkpoints import last_checkpoint
 from rllib_conv.training.ego_setup import EgoSetup, setup_for
-from rllib_conv.training.evaluate import check_episodes, ego_head_partner, ego_task_partner, load_module, player_return
+from rllib_conv.training.evaluate import check_episodes, ego_head_partner, ego_task_partner, load_module, seated_return
 from rllib_conv.training.experiment import ExperimentConfig, trial_config
 from rllib_conv.training.replica_export import copy_replica, replica_module
 from rllib_conv.training.replica_steps import replica_env_steps
@@ -107,20 +125,73 @@ class Curve:
     trained: ExperimentConfig
     label: dict[str, Any]
 
+    @property
+    def team(self) -> tuple[str, ...]:
+        """The new partner, one name per partner seat (one seat: the partner alone)."""
+        return self.setup.teams[0]
+
+    @property
+    def head(self) -> str:
+        """The new head: the one the ego adapts (`ego@<partner>`, `ego@<team>`; the one head of a single-network method)."""
+        return self.setup.head_for(self.team)
+
+    def seats(self, ego: Partner) -> dict[str, Partner]:
+        """Every seat's player for one evaluation: `ego` in the ego's seat, a fresh copy of the new partner in each other."""
+        entries = {e.name: e for e in self.setup.train}
+        return {self.setup.ego_agent: ego} | {a: entries[n].build() for a, n in zip(self.setup.partner_agents, self.team)}
+
+
+def parse_team(pop: Population, partner: str) -> tuple[str, ...]:
+    """The team `partner` names in a game of several partner seats: one name per seat joined by '+', or one name for every seat."""
+    seats, known = pop.partner_agents, [e.name for e in pop.partners]
+    names = partner.split(TEAM_SEPARATOR)
+    if len(names) == 1:
+        names = names * len(seats)
+    if len(names) != len(seats):
+        raise ValueError(
+            f"partners: {partner!r} names {len(names)} partners, but population {pop.name!r} has {len(seats)} partner seats "
+            f"{seats}: give one partner for every seat, or one per seat joined by {TEAM_SEPARATOR!r} (e.g. "
+            f"{TEAM_SEPARATOR.join(known[:1] * len(seats))!r})"
+        )
+    unknown = sorted(set(names) - set(known))
+    if unknown:
+        raise ValueError(f"partners: population {pop.name!r} has no partner(s) {unknown} (in {partner!r}); it has {known}")
+    return tuple(names)
+
+
+def _new_partner(pop: Population, partner: str) -> tuple[list[PartnerEntry], tuple[str, ...] | None]:
+    """The entries a curve adapting to `partner` seats (each once, in seat order) and its team (None with one partner seat)."""
+    if len(pop.partner_agents) == 1:
+        entry = next((e for e in pop.partners if e.name == partner), None)
+        if entry is None:
+            raise ValueError(f"population {pop.name!r} has no partner {partner!r}; it has {[e.name for e in pop.partners]}")
+        return [entry], None
+    team = parse_team(pop, partner)
+    entries = {e.name: e for e in pop.partners}
+    return [entries[name] for name in dict.fromkeys(team)], team
+
 
 def adapt_curve(cfg: AdaptConfig, run: str, partner: str) -> Curve:
-    """The curve adapting the trained ego in folder `run` to `partner` under `cfg`; ValueError if it cannot."""
+    """The curve adapting the trained ego in folder `run` to `partner` (a team, in a game of several partner seats) under `cfg`;
+    ValueError if it cannot."""
     trial = Path(run)
     trained = trial_config(trial)
     pop = partners.get(cfg.population or trained.population)
-    entry = next((e for e in pop.partners if e.name == partner), None)
-    if entry is None:
-        raise ValueError(f"population {pop.name!r} has no partner {partner!r}; it has {[e.name for e in pop.partners]}")
     game = trained.env
     if pop.env != game:
         raise ValueError(f"population {pop.name!r} is for {pop.env!r}, but the ego in {str(trial)!r} was trained on {game!r}")
+    entries, team = _new_partner(pop, partner)
+    seats = len(pop.partner_agents) + 1
+    check_seats(cfg.head_init, game, seats)
+    if cfg.guard:
+        check_seats(GUARD, game, seats)
     check_trained_ego(cfg.head_init, method(trained.method), repr(str(trial)))
     check_information(cfg.head_init, game)
+    if cfg.head_init == PLASTIC and partners.get(trained.population).partner_agents != pop.partner_agents:
+        raise ValueError(
+            f"head_init 'plastic' plays the heads the ego in {str(trial)!r} trained for teams in seats "
+            f"{partners.get(trained.population).partner_agents}; population {pop.name!r} seats its partners in {pop.partner_agents}"
+        )
     if adapter(cfg.head_init).uses["adapt"].training_policies:
         require_action_probs(partners.get(trained.population), f"head_init {cfg.head_init!r}")
     every, _, episodes = protocol(cfg, trained)
@@ -151,9 +222,9 @@ def adapt_curve(cfg: AdaptConfig, run: str, partner: str) -> Curve:
         "lam": trained.lam,
         "z_dim": trained.model.z_dim or trained.model.hidden,
         "seed": trained.seed,
-        "partner": partner,
+        "partner": partner if team is None else team_name(team),
     }
-    setup = setup_for(exp, pop, [entry])
+    setup = setup_for(exp, pop, entries, team)
     check_game(cfg.head_init, game, setup.env_config, setup.ego_agent)
     return Curve(run, partner, setup, load, trained, label)
 
@@ -195,6 +266,8 @@ class AdaptTrainable(AlgorithmTrainable):
             self._start_posteriors()
         if self.cfg.head_init in CONTROLS:
             self._start_controls()
+        if self.cfg.head_init == PLASTIC:
+            self._start_plastic()
         if self.cfg.guard:
             self._start_guards()
 
@@ -203,7 +276,7 @@ class AdaptTrainable(AlgorithmTrainable):
         module = learner_module(self.algo)
         self.prior = [replica_module(module, r, rep) for r, rep in enumerate(self.replicas)]
         self.guards = [FineTuneGuard(self.cfg.guard_z) for _ in self.curves]
-        self.ego_modules = [replica_id(c.setup.head_for(c.setup.train[0].name), r) for r, c in enumerate(self.curves)]
+        self.ego_modules = [replica_id(c.head, r) for r, c in enumerate(self.curves)]
         self.algo.env_runner_group.foreach_env_runner(lambda runner: runner.record_module_returns(), local_env_runner=True)
 
     def _update_guards(self) -> None:
@@ -294,6 +367,29 @@ class AdaptTrainable(AlgorithmTrainable):
                     if seen is not None:
                         control.observe(*seen)
 
+    def _start_plastic(self) -> None:
+        """Per curve: PLASTIC over its run's training partners, no evidence yet; the ego's seat records every partner seat's moves."""
+        self.plastic = []
+        for c in self.curves:
+            game, env_config, ego = c.setup.population.env, c.setup.env_config, c.setup.ego_agent
+            types = [e.build() for e in partners.get(c.trained.population).entries("train")]
+            views = {agent: seat_view(game, env_config, ego, agent) for agent in c.setup.partner_agents}
+            self.plastic.append(Plastic(types, views, self.cfg.posterior.epsilon))
+        egos = [c.setup.ego_agent for c in self.curves]
+        self.algo.env_runner_group.foreach_env_runner(
+            lambda runner: [env.unwrapped.record_seen_moves(egos) for env in runner.env.envs], local_env_runner=True
+        )
+
+    def _update_plastic(self) -> None:
+        """Give each curve's PLASTIC its partner seats' moves of the last update, as the ego's seat saw them."""
+        for per_env in self.algo.env_runner_group.foreach_env_runner(
+            lambda runner: [env.unwrapped.take_seen_moves(seated=True) for env in runner.env.envs], local_env_runner=True
+        ):
+            for per_copy in per_env:
+                for belief, seen in zip(self.plastic, per_copy):
+                    if seen is not None:
+                        belief.observe(*seen)
+
     def _load_new_heads(self, states: dict[int, dict[str, Any]], tasks: dict[int, dict[str, Any]] | None = None) -> None:
         """Start replica r's new head from `states[r]` (a plain head's state dict) and its task module from `tasks[r]`, everywhere."""
         if not states:
@@ -314,6 +410,9 @@ class AdaptTrainable(AlgorithmTrainable):
             plain = self.prior[r]  # not yet measured better than the ego before any update
         if self.cfg.head_init in CONTROLS:  # the trained ego's task module alone where the control has no move
             return self.controls[r].player(head_id, ego_task_partner(self._trained_ego(self.curves[r].run)))
+        if self.cfg.head_init == PLASTIC:
+            self.picked[r] = self.plastic[r].head_id()
+            return self.plastic[r].player(self._trained_ego(self.curves[r].run))
         adapting = ego_head_partner(plain, head_id)  # `player_return` seeds every player it plays
         if self.cfg.head_init != POSTERIOR:
             return adapting
@@ -355,15 +454,11 @@ class AdaptTrainable(AlgorithmTrainable):
         for r, (curve, rep) in enumerate(zip(self.curves, self.replicas)):
             if self.finished[r]:
                 continue
-            entry = curve.setup.train[0]
             plain = copy_replica(module, r, rep, self.plain[r])
-            score = player_return(
-                self._player(r, plain, curve.setup.head_for(entry.name)),
+            score = seated_return(
+                curve.seats(self._player(r, plain, curve.head)),
                 curve.setup.population.env,
                 curve.setup.env_config,
-                entry.build(),
-                curve.setup.ego_agent,
-                curve.setup.partner_agent,
                 self.episodes,
                 seed=self.cfg.seed + self.iteration,
             )
@@ -399,6 +494,8 @@ class AdaptTrainable(AlgorithmTrainable):
                     self._update_posteriors()
                 if self.cfg.head_init in CONTROLS:
                     self._update_controls()
+                if self.cfg.head_init == PLASTIC:
+                    self._update_plastic()
                 if self.cfg.guard:
                     self._update_guards()
             self.steps = [self.offset[r] + replica_env_steps(result, r) for r in range(len(self.curves))]
@@ -425,10 +522,16 @@ def adaptation_curves(cfg: AdaptConfig) -> list[dict[str, str]]:
             last_checkpoint(trial)
             trained = trial_config(trial)
             pop = partners.get(cfg.population or trained.population)
-            names = cfg.partners or [e.name for e in pop.entries(cfg.split)]
-            unknown = set(names) - {e.name for e in pop.partners}
-            if unknown:
-                raise ValueError(f"population {pop.name!r} has no partner(s) {sorted(unknown)}")
+            split = [e.name for e in pop.entries(cfg.split)]
+            if len(pop.partner_agents) > 1:  # every team of the split, or the teams given (each by its canonical name)
+                teams = [parse_team(pop, name) for name in cfg.partners] if cfg.partners else None
+                teams = teams or list(itertools.product(split, repeat=len(pop.partner_agents)))
+                names = [team_name(team) for team in teams]
+            else:
+                names = cfg.partners or split
+                unknown = set(names) - {e.name for e in pop.partners}
+                if unknown:
+                    raise ValueError(f"population {pop.name!r} has no partner(s) {sorted(unknown)}")
             pairs += [{"run": str(trial.resolve()), "partner": name} for name in names]
     if not pairs:
         raise ValueError(f"no partners to adapt to (split {cfg.split!r} is empty)")

@@ -63,6 +63,12 @@ class AdaptConfig(Strict):
     prior-planner (not in the paper) are the posterior's information-parity controls
     (`rllib_conv.common.adapters.CONTROLS`): they play by the new partner's moves as the ego's
     seat saw them (or, prior-planner, by the training partners alone), never by PPO's head.
+    `head_init: plastic` (not in the paper; Barrett & Stone's PLASTIC) keeps a belief over which
+    training partner sits in each partner seat, from each seat's moves as the ego's own
+    observation shows them, and plays the trained ego's head for the most probable team
+    (`rllib_conv.adaptation.plastic`; `posterior.epsilon` smooths its models). In a game of more
+    than two seats a partner is a team (`partners`: `H3+H4`, or `H3` in every seat; default every
+    team of the split); fresh and plastic adapt there, the other starts and the guard are refused.
     """
 
     name: FolderName = Field("adapt", description="name of the output CSV and Tune experiment")
@@ -70,7 +76,9 @@ class AdaptConfig(Strict):
     population: str | None = Field(None, description="population of the new partners (default: the one each run trained on)")
     split: Literal["train", "test"] = Field("test", description="which partners of the population to adapt to")
     partners: list[str] | None = Field(
-        None, description="adapt to these partners only (names: rllib-conv partners show POP); default: the split"
+        None,
+        description="adapt to these partners only (names: rllib-conv partners show POP); with several partner seats teams, "
+        "one name per seat joined by '+' (H3+H4) or one name for every seat; default: the split (every team of it)",
     )
     method: Literal["scratch"] | None = Field(None, description="scratch: adapt a fresh network instead (learning from scratch)")
     train_task: bool = Field(True, description="train the task module while adapting (false keeps it frozen)")
@@ -78,7 +86,8 @@ class AdaptConfig(Strict):
         FRESH,
         description="pick: first try the fresh head and every training partner's head on the new partner, adapt from the best; "
         "posterior: adapt the fresh head and play by a posterior over which training partner's convention the new partner follows; "
-        "lookup, counts-planner, prior-planner: the posterior's information-parity controls (docs/adapting.md) "
+        "lookup, counts-planner, prior-planner: the posterior's information-parity controls (docs/adapting.md); "
+        "plastic: a belief over the training partners' types per partner seat, playing the head of the most probable team "
         "(all not in the paper)",
     )
     pick_steps: PositiveInt | None = Field(None, description="env steps spent picking the head (default: one update's worth)")

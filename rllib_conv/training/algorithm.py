@@ -30,7 +30,7 @@ from rllib_conv.modules import TASK_ID, FixedPartnerModule, PartnerHeadModule, P
 from rllib_conv.modules.multi import replica_id
 from rllib_conv.modules.packed.ego_stack import EgoStack
 from rllib_conv.modules.packed.stacked_multi import STACK_ID, HeadView, StackedEgoMultiRLModule
-from rllib_conv.modules.partner_schedule import PartnerFunction, RoundRobin, WeightedPartners
+from rllib_conv.modules.partner_schedule import FixedTeam, PartnerFunction, RoundRobin, WeightedPartners
 from rllib_conv.partners.trained import load_rl_module
 from rllib_conv.training.batched_env_runner import BatchedEnvRunner
 from rllib_conv.training.ego_setup import EgoSetup
@@ -69,7 +69,8 @@ def packing_key(setup: EgoSetup) -> str:
         setup.env_config,
         {k: v.model_dump() if hasattr(v, "model_dump") else v for k, v in shared.items()},
     )
-    return json.dumps([*parts, setup.ego_agent, setup.partner_agents, len(setup.train)], sort_keys=True, default=str)
+    fixed = setup.team is not None  # one team per replica (`partner_schedule.FixedTeam`) or every team
+    return json.dumps([*parts, setup.ego_agent, setup.partner_agents, len(setup.train), fixed], sort_keys=True, default=str)
 
 
 def _check_packable(replicas: list[Replica]) -> None:
@@ -270,7 +271,9 @@ def build_ppo_config(setup: EgoSetup | list[Replica], load: dict[str, str] | Non
         first.partner_agents,
         shared_head=method(exp.method).single_head,
         replica_partners=[[e.name for e in rep.setup.train] for rep in replicas],
-        schedule=partner_schedule(exp.mapping, [stream_seed(rep.own_seed, "mapping") for rep in replicas]),
+        schedule=FixedTeam([rep.setup.team for rep in replicas])
+        if first.team is not None
+        else partner_schedule(exp.mapping, [stream_seed(rep.own_seed, "mapping") for rep in replicas]),
     )
     trained = [STACK_ID, *(replica_id(mid, r) for r, rep in enumerate(replicas) for mid in rep.setup.head_ids)]
     settings = exp.learner_settings()

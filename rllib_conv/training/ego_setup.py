@@ -2,7 +2,8 @@
 
 In a game of k seats the population names the k-1 partner seats; every episode seats one
 training partner in each (`modules.mapping`), and the modular ego has a head per team of
-partners in seat order (`ego@a+b`: P**(k-1) heads for P training partners).
+partners in seat order (`ego@a+b`: P**(k-1) heads for P training partners). Adapting to a new
+team fixes it (`team`): every episode seats that team, and the ego has its one head.
 """
 
 from __future__ import annotations
@@ -30,13 +31,16 @@ class EgoSetup:
     partner_agent: str  # the first partner seat (its spaces are every partner seat's)
     train: list[PartnerEntry]
     partner_agents: list[str] = field(default_factory=list)  # every partner seat; empty: `partner_agent` alone
+    team: tuple[str, ...] | None = None  # the one team every episode seats (adaptation); None: every team of `train`
 
     def __post_init__(self) -> None:
         self.partner_agents = list(self.partner_agents) or [self.partner_agent]
 
     @property
     def teams(self) -> list[tuple[str, ...]]:
-        """Every team of training partners, one per partner seat in seat order (one seat: each partner alone)."""
+        """Every team of training partners, one per partner seat in seat order (one seat: each partner alone); `team` alone if set."""
+        if self.team is not None:
+            return [self.team]
         return list(itertools.product([e.name for e in self.train], repeat=len(self.partner_agents)))
 
     @property
@@ -56,8 +60,8 @@ def resolve(exp: ExperimentConfig) -> EgoSetup:
     return setup_for(exp, pop, pop.entries("train"))
 
 
-def setup_for(exp: ExperimentConfig, pop: Population, train: list[PartnerEntry]) -> EgoSetup:
-    """The setup training the ego of `exp` against the partners `train` of `pop`."""
+def setup_for(exp: ExperimentConfig, pop: Population, train: list[PartnerEntry], team: tuple[str, ...] | None = None) -> EgoSetup:
+    """The setup training the ego of `exp` against the partners `train` of `pop` (only their team `team`, one per partner seat, if given)."""
     if exp.env is not None and exp.env != pop.env:
         raise ValueError(f"env {exp.env!r} does not match population {pop.name!r}, which is for {pop.env!r}")
     env_config = {**pop.env_config, **exp.env_config}
@@ -78,7 +82,11 @@ def setup_for(exp: ExperimentConfig, pop: Population, train: list[PartnerEntry])
         raise ValueError(f"mapping.function chooses one partner seat's partner; population {pop.name!r} has {len(seats)}")
     ego_agent = next(a for a in agents if a not in seats)
     _check_mapping(exp, [e.name for e in train])
-    return EgoSetup(exp.resolve(pop.env), pop, env_config, ego_agent, seats[0], train, seats)
+    if team is not None and (len(team) != len(seats) or not set(team) <= {e.name for e in train}):
+        raise ValueError(f"team {list(team)} must name one of the partners {[e.name for e in train]} for each seat of {seats}")
+    return EgoSetup(
+        exp.resolve(pop.env), pop, env_config, ego_agent, seats[0], train, seats, None if team is None else tuple(team)
+    )
 
 
 def _check_mapping(exp: ExperimentConfig, partners: list[str]) -> None:

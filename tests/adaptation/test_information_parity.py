@@ -14,9 +14,10 @@ import numpy as np
 import pytest
 
 from rllib_conv import envs
-from rllib_conv.adaptation.registry import ADAPTERS, CONTROLS, check_information
+from rllib_conv.adaptation.registry import ADAPTERS, CONTROLS, PLASTIC, check_game, check_information
 from rllib_conv.envs.blocks.env import HIDDEN, decode_observations
-from rllib_conv.envs.rllib_adapter import PettingZooMultiAgentEnv
+from rllib_conv.envs.rllib_adapter import RLLIB_OBS_KEY, PettingZooMultiAgentEnv
+from rllib_conv.envs.seat_views import seat_view
 from rllib_conv.pipelines.plans import GAMES as PLAN_GAMES
 from rllib_conv.pipelines.plans import plan_for, shipped_plan
 from rllib_conv.play.room import GAMES as STUDY_GAMES
@@ -142,3 +143,31 @@ def test_the_posteriors_controls_never_receive_the_partners_observation() -> Non
     assert len(moves) == 30 * 3
     assert {o.tobytes() for o in recorded} <= ego_views
     assert not (decode_observations(recorded)["goal"] == HIDDEN).any()
+
+
+def test_plastic_reads_every_partner_seat_only_through_the_egos_own_observation() -> None:
+    pytest.importorskip("lbforaging")
+    # Declared: it never reads a partner's situation (its observation), so it is allowed wherever it can rebuild one.
+    assert not ADAPTERS[PLASTIC].uses["adapt"].partner_situation
+    # Done: on LBF (3 players, full sight) the ego's seat records only its own observations, and the situation PLASTIC
+    # judges each partner seat's move in, rebuilt from it by the game's rules, is the one that seat acted on.
+    config = {"players": 3}
+    env, rng = PettingZooMultiAgentEnv(envs.make("lbf", **config)), np.random.default_rng(0)
+    env.record_seen_moves(EGO)
+    ego_views, acted_on = set(), []
+    for episode in range(5):
+        observations, _ = env.reset(seed=episode)
+        while env.env.agents:
+            ego_views.add(observations[EGO][RLLIB_OBS_KEY].tobytes())
+            acted_on += [observations[a][RLLIB_OBS_KEY] for a in ("player_1", "player_2")]  # the order moves are recorded in
+            actions = {a: int(rng.choice(np.flatnonzero(o["action_mask"]))) for a, o in observations.items()}
+            observations, *_ = env.step(actions)
+    recorded, ego_moves, _, seats = env.take_seen_moves(seated=True)
+    assert {o.tobytes() for o in recorded} <= ego_views and list(seats[:2]) == ["player_1", "player_2"]
+    views = {a: seat_view("lbf", config, EGO, a) for a in ("player_1", "player_2")}
+    for observation, move, seat, truth in zip(recorded, ego_moves, seats, acted_on, strict=True):
+        assert not np.array_equal(observation, truth)  # the partner's own vector is another one...
+        assert np.array_equal(views[seat](observation, int(move))[0], truth)  # ...that the ego's determines
+    # With partial sight the ego's observation does not determine a partner's: PLASTIC is refused before anything runs.
+    with pytest.raises(ValueError, match="it does not show the situation of 'player_1'"):
+        check_game(PLASTIC, "lbf", {"players": 3, "sight": 2}, EGO)

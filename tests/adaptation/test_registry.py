@@ -31,7 +31,15 @@ def test_every_adapter_names_files_that_exist_and_the_code_bound_to_it_lives_the
 
 def test_adapt_and_play_offer_the_vocabularys_starts() -> None:
     assert list(typing.get_args(adapters.StartName)) == adapters.names(role="start")
-    assert adapters.names(role="start") == ["fresh", "pick", "posterior", "lookup", "counts-planner", "prior-planner"]
+    assert adapters.names(role="start") == [
+        "fresh",
+        "pick",
+        "posterior",
+        "lookup",
+        "counts-planner",
+        "prior-planner",
+        "plastic",
+    ]
     assert AdaptConfig.model_fields["head_init"].default == adapters.FRESH
     for start in adapters.names(role="start"):
         assert AdaptConfig(runs=["r"], head_init=start).head_init == start
@@ -60,7 +68,7 @@ def test_the_old_spelling_table_is_the_fresh_adapter_in_the_server() -> None:
         build_settings(agents=["pilot=oracle"], adapter="pick")  # an adapter of `adapt` only
     with pytest.raises(
         ValueError,
-        match="unknown adapter 'bayes'; adapters: fresh, pick, posterior, guard, lookup, counts-planner, prior-planner",
+        match="unknown adapter 'bayes'; adapters: fresh, pick, posterior, guard, lookup, counts-planner, prior-planner, plastic",
     ):
         adapters.adapter("bayes")
 
@@ -83,13 +91,15 @@ def test_what_each_adapter_uses_is_stated_per_surface() -> None:
     assert uses["lookup"] == {"adapt": ["partner_actions", "situation_keys"]}
     assert uses["counts-planner"] == {"adapt": ["partner_actions", "game_model"]}
     assert uses["prior-planner"] == {"adapt": ["training_policies", "game_model"]}
+    # PLASTIC: the partners' moves against the training partners' policies, each seat's situation rebuilt by the rules.
+    assert uses["plastic"] == {"adapt": ["partner_actions", "training_policies", "game_model"]}
     assert [a.name for a in adapters.ADAPTERS.values() if a.in_paper] == ["fresh"]
 
 
 def test_a_trained_ego_with_one_shared_head_can_adapt_only_from_a_fresh_head() -> None:
     registry.check_trained_ego("fresh", method("agg"), "'run'")
     registry.check_trained_ego("posterior", method("modular"), "'run'")
-    for start in ("pick", "posterior"):
+    for start in ("pick", "posterior", "plastic"):
         with pytest.raises(
             ValueError,
             match=f"head_init '{start}' needs one head per training partner, but the ego in 'run' was trained with method 'agg'",

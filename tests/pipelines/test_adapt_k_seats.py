@@ -1,0 +1,97 @@
+"""Adapting an ego of a game of three seats (Level-Based Foraging) to held-out teams: fresh head and PLASTIC."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pandas as pd
+import pytest
+import yaml
+
+from rllib_conv import partners
+from rllib_conv.adaptation.registry import check_seats
+from rllib_conv.cli import main
+from rllib_conv.common.config_files import checked
+from rllib_conv.common.run_folders import trial_folders
+from rllib_conv.pipelines.adapt import CURVE_COLUMNS, adaptation_curves, parse_team, run_adaptations
+from rllib_conv.pipelines.adapt_config import AdaptConfig
+
+pytest.importorskip("lbforaging")
+
+
+def test_a_new_partner_is_a_team_one_name_per_seat_or_one_for_every_seat() -> None:
+    pop = partners.get("lbf-heuristics")
+    assert parse_team(pop, "H3+H4") == ("H3", "H4") and parse_team(pop, "H3") == ("H3", "H3")
+    with pytest.raises(ValueError, match=r"partners: 'H3\+H4\+H1' names 3 partners, but population 'lbf-heuristics' has 2"):
+        parse_team(pop, "H3+H4+H1")
+    with pytest.raises(ValueError, match=r"partners: population 'lbf-heuristics' has no partner\(s\) \['H9'\]"):
+        parse_team(pop, "H3+H9")
+
+
+@pytest.mark.parametrize("start", ["pick", "posterior", "lookup", "counts-planner", "prior-planner", "guard"])
+def test_what_adapts_one_partners_heads_is_refused_with_three_seats_and_allowed_with_two(start: str) -> None:
+    check_seats(start, "blocks", 2)
+    what = "guard: true" if start == "guard" else f"head_init '{start}'"
+    with pytest.raises(ValueError, match=f"{what} adapts to one partner in a game of two seats; 'lbf' has 3"):
+        check_seats(start, "lbf", 3)
+    check_seats("fresh", "lbf", 3), check_seats("plastic", "lbf", 3)
+
+
+@pytest.fixture(scope="module")
+def lbf_ego(ray_session, tmp_path_factory) -> Path:
+    """A tiny modular ego trained on lbf-heuristics (3 players, heads for H1/H2 teams); its trial folder."""
+    root = tmp_path_factory.mktemp("lbf")
+    config = root / "lbf3.yaml"
+    tiny = {"name": "lbf3", "population": "lbf-heuristics", "model": {"hidden": 8}}
+    config.write_text(yaml.safe_dump({**tiny, "ppo": {"rollout_per_partner": 50, "num_epochs": 1}, "run": {"timesteps": 200}}))
+    assert main(["train", str(config), "--storage", str(root / "runs")]) == 0
+    (trial,) = trial_folders(root / "runs" / "lbf3")
+    return trial
+
+
+@pytest.mark.slow
+def test_a_three_seat_ego_adapts_to_held_out_teams_fresh_and_by_plastic(lbf_ego: Path, tmp_path) -> None:
+    run = str(lbf_ego)
+    base = {"runs": [run], "every": 50, "steps": 100, "episodes": 4, "ppo": {"num_epochs": 1, "minibatch_size": 25}}
+    fresh = checked({**base, "name": "fresh", "partners": ["H3+H4"]}, AdaptConfig)
+    plastic = checked({**base, "name": "plastic", "partners": ["H4", "H3+H4"], "head_init": "plastic"}, AdaptConfig)
+    # By default every team of the held-out split.
+    assert [p["partner"] for p in adaptation_curves(fresh.first.model_copy(update={"partners": None}))] == [
+        "H3+H3",
+        "H3+H4",
+        "H4+H3",
+        "H4+H4",
+    ]
+    tables = run_adaptations([fresh, plastic], out=tmp_path / "out", storage=tmp_path / "runs")
+    for name, partners_ in (("fresh", ["H3+H4"]), ("plastic", ["H3+H4", "H4+H4"])):
+        curves = pd.read_csv(tmp_path / "out" / f"{name}.csv")
+        assert len(curves) == len(tables[name])
+        assert set(CURVE_COLUMNS) <= set(curves.columns)
+        assert sorted(curves["partner"].unique()) == partners_
+        for _, curve in curves.groupby("partner"):
+            steps = curve["steps"].tolist()  # evaluated before every update (of at least 50 env steps), to the end
+            assert len(steps) == 3 and steps[0] == 0 and steps[1] >= 50 and steps[2] >= 100
+            assert curve["mean_return"].between(0.0, 1.0).all() and curve["stderr"].notna().all()
+    # The packs' own tables say which head PLASTIC played at each point: a trained head, for a team of training partners,
+    # the first team's before any evidence, then the belief's.
+    packs = pd.concat([pd.read_csv(f) for f in (tmp_path / "runs").glob("adapt-stage-*/AdaptTrainable_*/curves.csv")])
+    picked = packs.dropna(subset=["picked"]) if "picked" in packs else packs.iloc[:0]
+    assert len(picked) == 2 * 3 and sorted(picked["partner"].unique()) == ["H3+H4", "H4+H4"]
+    assert set(picked["picked"]) <= {"ego@H1+H1", "ego@H1+H2", "ego@H2+H1", "ego@H2+H2"}
+    assert (picked.query("steps == 0")["picked"] == "ego@H1+H1").all()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--head-init", "pick"], "head_init 'pick' adapts to one partner in a game of two seats; 'lbf' has 3"),
+        (["--guard"], "guard: true adapts to one partner in a game of two seats; 'lbf' has 3"),
+        (["--partner", "H3+H4+H3"], "names 3 partners, but population 'lbf-heuristics' has 2 partner seats"),
+    ],
+)
+def test_what_three_seats_cannot_do_is_refused_naming_it_and_writes_nothing(lbf_ego: Path, tmp_path, capsys, args, message):
+    out, storage = tmp_path / "out", tmp_path / "runs"
+    assert main(["adapt", str(lbf_ego), "--out", str(out), "--storage", str(storage), *args]) == 2
+    assert message in capsys.readouterr().err
+    assert not out.exists() and not storage.exists()
