@@ -146,6 +146,7 @@ ADAPTERS: dict[str, Adapter] = {
             uses={"adapt": Uses(returns=True)},
             module="rllib_conv/adaptation/fine_tune_guard.py",
             guards=(FRESH, POSTERIOR),
+            many_seats=True,  # the adapting ego's own returns, whoever its partners
         ),
         Adapter(
             name=LOOKUP,

@@ -29,7 +29,7 @@ In a game of more than two seats a new partner is a team, one partner per partne
 (`H3+H4`; a single name sits in every seat): the curve's partner is the team's name, its
 fresh head `ego@<team>`, every episode seats that team, and it is evaluated with the team in
 its seats. By default a curve adapts to every team of the split. The adapters that choose among
-one partner's heads or situations (pick, posterior, the controls) and the guard are refused there.
+one partner's heads or situations (pick, posterior, the controls) are refused there.
 
 Curves train in packs: one Tune trial (`AdaptTrainable`) holds up to `max_pack` curves of
 egos that differ only in seed and partner, as replicas of one algorithm (each with its own

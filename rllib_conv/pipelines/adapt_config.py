@@ -68,7 +68,7 @@ class AdaptConfig(Strict):
     observation shows them, and plays the trained ego's head for the most probable team
     (`rllib_conv.adaptation.plastic`; `posterior.epsilon` smooths its models). In a game of more
     than two seats a partner is a team (`partners`: `H3+H4`, or `H3` in every seat; default every
-    team of the split); fresh and plastic adapt there, the other starts and the guard are refused.
+    team of the split); fresh (guarded or not) and plastic adapt there, the other starts are refused.
     """
 
     name: FolderName = Field("adapt", description="name of the output CSV and Tune experiment")

@@ -28,13 +28,13 @@ def test_a_new_partner_is_a_team_one_name_per_seat_or_one_for_every_seat() -> No
         parse_team(pop, "H3+H9")
 
 
-@pytest.mark.parametrize("start", ["pick", "posterior", "lookup", "counts-planner", "prior-planner", "guard"])
+@pytest.mark.parametrize("start", ["pick", "posterior", "lookup", "counts-planner", "prior-planner"])
 def test_what_adapts_one_partners_heads_is_refused_with_three_seats_and_allowed_with_two(start: str) -> None:
     check_seats(start, "blocks", 2)
-    what = "guard: true" if start == "guard" else f"head_init '{start}'"
-    with pytest.raises(ValueError, match=f"{what} adapts to one partner in a game of two seats; 'lbf' has 3"):
+    with pytest.raises(ValueError, match=f"head_init '{start}' adapts to one partner in a game of two seats; 'lbf' has 3"):
         check_seats(start, "lbf", 3)
-    check_seats("fresh", "lbf", 3), check_seats("plastic", "lbf", 3)
+    for allowed in ("fresh", "plastic", "guard"):
+        check_seats(allowed, "lbf", 3)
 
 
 @pytest.fixture(scope="module")
@@ -50,10 +50,11 @@ def lbf_ego(ray_session, tmp_path_factory) -> Path:
 
 
 @pytest.mark.slow
-def test_a_three_seat_ego_adapts_to_held_out_teams_fresh_and_by_plastic(lbf_ego: Path, tmp_path) -> None:
+def test_a_three_seat_ego_adapts_to_held_out_teams_fresh_guarded_from_scratch_and_by_plastic(lbf_ego: Path, tmp_path) -> None:
     run = str(lbf_ego)
     base = {"runs": [run], "every": 50, "steps": 100, "episodes": 4, "ppo": {"num_epochs": 1, "minibatch_size": 25}}
-    fresh = checked({**base, "name": "fresh", "partners": ["H3+H4"]}, AdaptConfig)
+    fresh = checked({**base, "name": "fresh", "partners": ["H3+H4"], "guard": True}, AdaptConfig)
+    scratch = checked({**base, "name": "scratch", "partners": ["H4"], "method": "scratch"}, AdaptConfig)
     plastic = checked({**base, "name": "plastic", "partners": ["H4", "H3+H4"], "head_init": "plastic"}, AdaptConfig)
     # By default every team of the held-out split.
     assert [p["partner"] for p in adaptation_curves(fresh.first.model_copy(update={"partners": None}))] == [
@@ -62,20 +63,23 @@ def test_a_three_seat_ego_adapts_to_held_out_teams_fresh_and_by_plastic(lbf_ego:
         "H4+H3",
         "H4+H4",
     ]
-    tables = run_adaptations([fresh, plastic], out=tmp_path / "out", storage=tmp_path / "runs")
-    for name, partners_ in (("fresh", ["H3+H4"]), ("plastic", ["H3+H4", "H4+H4"])):
+    tables = run_adaptations([fresh, scratch, plastic], out=tmp_path / "out", storage=tmp_path / "runs")
+    for name, partners_ in (("fresh", ["H3+H4"]), ("scratch", ["H4+H4"]), ("plastic", ["H3+H4", "H4+H4"])):
         curves = pd.read_csv(tmp_path / "out" / f"{name}.csv")
-        assert len(curves) == len(tables[name])
-        assert set(CURVE_COLUMNS) <= set(curves.columns)
+        assert len(curves) == len(tables[name]) and set(CURVE_COLUMNS) <= set(curves.columns)
         assert sorted(curves["partner"].unique()) == partners_
+        assert (curves["method"] == ("scratch" if name == "scratch" else "modular")).all()
         for _, curve in curves.groupby("partner"):
             steps = curve["steps"].tolist()  # evaluated before every update (of at least 50 env steps), to the end
             assert len(steps) == 3 and steps[0] == 0 and steps[1] >= 50 and steps[2] >= 100
             assert curve["mean_return"].between(0.0, 1.0).all() and curve["stderr"].notna().all()
-    # The packs' own tables say which head PLASTIC played at each point: a trained head, for a team of training partners,
-    # the first team's before any evidence, then the belief's.
+    # The packs' own tables say what each point played: the guard whether it kept the ego before any update (it
+    # does at the start), PLASTIC which trained head, for a team of training partners: the first team's before any
+    # evidence, then the belief's.
     packs = pd.concat([pd.read_csv(f) for f in (tmp_path / "runs").glob("adapt-stage-*/AdaptTrainable_*/curves.csv")])
-    picked = packs.dropna(subset=["picked"]) if "picked" in packs else packs.iloc[:0]
+    guarded = packs.dropna(subset=["prior_kept"]).sort_values("steps")
+    assert guarded["partner"].tolist() == ["H3+H4"] * 3 and bool(guarded["prior_kept"].iloc[0])
+    picked = packs.dropna(subset=["picked"])
     assert len(picked) == 2 * 3 and sorted(picked["partner"].unique()) == ["H3+H4", "H4+H4"]
     assert set(picked["picked"]) <= {"ego@H1+H1", "ego@H1+H2", "ego@H2+H1", "ego@H2+H2"}
     assert (picked.query("steps == 0")["picked"] == "ego@H1+H1").all()
@@ -86,7 +90,7 @@ def test_a_three_seat_ego_adapts_to_held_out_teams_fresh_and_by_plastic(lbf_ego:
     ("args", "message"),
     [
         (["--head-init", "pick"], "head_init 'pick' adapts to one partner in a game of two seats; 'lbf' has 3"),
-        (["--guard"], "guard: true adapts to one partner in a game of two seats; 'lbf' has 3"),
+        (["--head-init", "posterior"], "head_init 'posterior' adapts to one partner in a game of two seats; 'lbf' has 3"),
         (["--partner", "H3+H4+H3"], "names 3 partners, but population 'lbf-heuristics' has 2 partner seats"),
     ],
 )
