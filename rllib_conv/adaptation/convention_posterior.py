@@ -265,7 +265,7 @@ class PosteriorPlayer(Partner):
         self._live = self.posterior.copy()
         self._hypothesis = self._draw(self._live.hypotheses())
 
-    def observe_other(self, observation: np.ndarray, action_mask: np.ndarray, action: int) -> None:
+    def observe_other(self, observation: np.ndarray, action_mask: np.ndarray, action: int, agent: str | None = None) -> None:
         self._live.observe(np.asarray(observation)[None], np.asarray(action_mask)[None], np.array([action]))
         post = self._live.hypotheses()
         if post[self._hypothesis] < self.switch * post.max():

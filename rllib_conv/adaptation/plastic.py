@@ -18,13 +18,14 @@ team. Here:
   independent a priori, so the team posterior is the product over seats and its most probable
   team is each seat's most probable type (the first in training order on a tie);
 - **the policy** is the trained ego (task module and heads, as trained) with the head for the
-  most probable team. Before any evidence it plays the first team's head.
+  most probable team, chosen again after every partner move (`PlasticPlayer`). Before any
+  evidence it plays the first team's head.
 
 Barrett & Stone update with a bounded loss (polynomial weights) to survive types that fit no
 known one; the smoothing plays that part here. In `rllib-conv adapt` the belief learns from
 the env steps of the adaptation's rollouts (PPO trains a fresh head on them beside it, so every
-curve spends the same env steps, but PLASTIC never plays that head) and is fixed while the ego
-is evaluated.
+curve spends the same env steps, but PLASTIC never plays that head); each evaluation episode
+starts from that belief and updates a copy of it move by move, as PLASTIC does online.
 """
 
 from __future__ import annotations
@@ -36,6 +37,7 @@ from typing import Any
 import numpy as np
 
 from rllib_conv.adaptation.convention_posterior import ConventionPosterior
+from rllib_conv.common.seeds import member_seed
 from rllib_conv.envs.seat_views import SeatView
 from rllib_conv.modules import ego_id
 from rllib_conv.modules.multi import team_name
@@ -91,9 +93,65 @@ class Plastic:
         """The trained ego's head for the most probable team (`ego@a+b`; `ego@a` with one partner seat)."""
         return ego_id(team_name(self.team()))
 
-    def player(self, trained: Any) -> Partner:
-        """The trained ego (`ConventionMultiRLModule`) playing with its head for the most probable team."""
-        head = self.head_id()
-        if head not in trained.head_ids():
-            raise ValueError(f"PLASTIC chose {head!r}, but the trained ego has heads {sorted(trained.head_ids())}")
-        return ego_head_partner(trained, head)
+    def copy(self) -> "Plastic":
+        """An independent copy of the evidence (the types and views are shared)."""
+        other = object.__new__(Plastic)
+        other.types, other.views = self.types, self.views
+        other.beliefs = {seat: belief.copy() for seat, belief in self.beliefs.items()}
+        return other
+
+    def head_ids(self) -> list[str]:
+        """The heads of every team of known types, in `team_belief` order: the policies PLASTIC may play."""
+        return [ego_id(team_name(team)) for team in itertools.product(self.types, repeat=len(self.seats))]
+
+    def player(self, trained: Any) -> "PlasticPlayer":
+        """The trained ego (`ConventionMultiRLModule`) playing by PLASTIC from the evidence so far (`PlasticPlayer`)."""
+        return PlasticPlayer("plastic", self, trained)
+
+
+class PlasticPlayer(Partner):
+    """The trained ego playing by PLASTIC, as a `Partner` (for `play_episodes`): the head of the most probable team.
+
+    Each episode starts from `plastic` (the evidence so far) and updates a copy after every move
+    of a partner seat, as the ego's seat sees it: the ego's own last observation and move (kept
+    when it acts), then that seat's action. The partner's own observation, which `observe_other`
+    is handed, is never read. `action_probs` is the head chosen before any move of the episode.
+    """
+
+    kind = "plastic"
+    learns_in_play = True
+
+    def __init__(self, name: str, plastic: Plastic, trained: Any) -> None:
+        super().__init__(name)
+        missing = sorted(set(plastic.head_ids()) - set(trained.head_ids()))
+        if missing:
+            raise ValueError(f"PLASTIC plays a head per team of known types, but the trained ego has no {missing}")
+        self.plastic = plastic
+        self.heads = {mid: ego_head_partner(trained, mid) for mid in plastic.head_ids()}
+        self.start_episode()
+
+    def seed(self, seed: int | None) -> None:
+        for i, head in enumerate(self.heads.values()):
+            head.seed(None if seed is None else member_seed(seed, i))
+
+    def params(self) -> dict[str, Any]:
+        return {"types": self.plastic.types, "seats": self.plastic.seats}
+
+    def start_episode(self) -> None:
+        self._live = self.plastic.copy()
+        self._observation: np.ndarray | None = None
+        self._move = -1
+
+    def act(self, observation: np.ndarray, action_mask: np.ndarray) -> int:
+        self._observation = np.array(observation, dtype=np.float32)
+        self._move = self.heads[self._live.head_id()].act(observation, action_mask)
+        return self._move
+
+    def observe_other(self, observation: np.ndarray, action_mask: np.ndarray, action: int, agent: str | None = None) -> None:
+        if agent in self._live.views and self._observation is not None:  # keyed by the ego's view, not `observation`
+            self._live.observe(
+                self._observation[None], np.array([self._move]), np.array([action]), np.array([agent], dtype=object)
+            )
+
+    def action_probs(self, observations: np.ndarray, action_masks: np.ndarray) -> np.ndarray:
+        return self.heads[self.plastic.head_id()].action_probs(observations, action_masks)

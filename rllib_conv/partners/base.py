@@ -56,8 +56,9 @@ class Partner(ABC):
     def start_episode(self) -> None:
         """A new episode begins (`partners.episodes.episode_stream` calls it); partners that adapt during play reset their per-episode state."""
 
-    def observe_other(self, observation: np.ndarray, action_mask: np.ndarray, action: int) -> None:
-        """The other seat chose `action` at its `observation` (with its `action_mask`); partners that adapt during play learn from it."""
+    def observe_other(self, observation: np.ndarray, action_mask: np.ndarray, action: int, agent: str | None = None) -> None:
+        """The other seat `agent` chose `action` at its `observation` (with its `action_mask`); partners that adapt during play
+        learn from it (`agent` tells the seats apart in games of more than two)."""
 
     def seed(self, seed: int | None) -> None:
         """Seed the partner's own RNG; deterministic partners ignore it."""

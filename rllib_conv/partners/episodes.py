@@ -22,7 +22,7 @@ def _split(obs) -> tuple[np.ndarray, np.ndarray | None]:
 def _tell_others(seats: dict[str, Partner], agent: str, observation: np.ndarray, mask: np.ndarray, action: int) -> None:
     for other, partner in seats.items():
         if other != agent:
-            partner.observe_other(observation, mask, action)
+            partner.observe_other(observation, mask, action, agent)
 
 
 def episode_stream(env: AECEnv | ParallelEnv, seats: dict[str, Partner], seed: int = 0) -> Iterator[tuple[float, int]]:

@@ -100,3 +100,56 @@ def test_on_level_based_foraging_plastic_names_the_team_from_the_moves_the_egos_
     plastic.observe(*env.take_seen_moves(seated=True))
     assert plastic.team() == ("H2", "H1") and plastic.head_id() == "ego@H2+H1"
     assert min(plastic.seat_belief("player_1")[1], plastic.seat_belief("player_2")[0]) > 0.99
+
+
+class FirstLegal(Partner):
+    """A stand-in for one of the trained ego's heads: plays the first legal action and counts its moves."""
+
+    kind = "first_legal_test_head"
+
+    def __init__(self, name: str) -> None:
+        super().__init__(name)
+        self.moves = 0
+
+    def act(self, observation: np.ndarray, action_mask: np.ndarray) -> int:
+        self.moves += 1
+        return int(np.flatnonzero(action_mask)[0])
+
+    def params(self) -> dict:
+        return {}
+
+
+class Heads:
+    """A stand-in for a trained ego: its head IDs (the player's heads are replaced before it plays)."""
+
+    def head_ids(self) -> list[str]:
+        return [f"ego@{a}+{b}" for a in ("H1", "H2") for b in ("H1", "H2")]
+
+
+def test_the_player_updates_its_belief_within_the_episode_from_the_egos_view_and_starts_each_from_the_evidence() -> None:
+    pytest.importorskip("lbforaging")
+    from rllib_conv.partners.episodes import episode_stream
+
+    config, seats = {"players": 3}, ("player_1", "player_2")
+    views = {agent: seat_view("lbf", config, "player_0", agent) for agent in seats}
+    plastic = Plastic([LBFHeuristic("H1", rule="H1"), LBFHeuristic("H2", rule="H2")], views)
+    player = plastic.player(Heads())
+    player.heads = {mid: FirstLegal(mid) for mid in player.heads}
+    team = {"player_0": player, "player_1": LBFHeuristic("H2", rule="H2"), "player_2": LBFHeuristic("H1", rule="H1")}
+    # On this field (seed 3) H1 and H2 go for different food in both seats early on (on some, e.g. seed 0, they agree).
+    _, steps = next(episode_stream(envs.make("lbf", **config), team, seed=3))
+    played = {mid: head.moves for mid, head in player.heads.items()}
+    assert sum(played.values()) == steps and played["ego@H2+H1"] > 0.8 * steps  # found within a few moves of the episode
+    assert player._live.team() == ("H2", "H1") and plastic.team() == ("H1", "H1")  # the evidence before it is untouched
+    player.start_episode()
+    assert player._live.team() == ("H1", "H1")
+    # The partner's own observation, which play hands it, is never read: garbage there changes nothing.
+    before = player._live.seat_belief("player_1")
+    player.observe_other(np.full(18, np.nan), np.ones(6, dtype=np.int8), 1, "player_1")  # the ego has not acted yet
+    assert np.array_equal(player._live.seat_belief("player_1"), before)
+    observation = envs.make("lbf", **config).reset(seed=3)[0]["player_0"]["observation"]
+    player.act(observation, np.ones(6, dtype=np.int8))
+    player.observe_other(np.full(18, np.nan), np.ones(6, dtype=np.int8), 1, "player_1")
+    reference = plastic.copy()
+    reference.observe(observation[None], np.array([player._move]), np.array([1]), np.array(["player_1"], dtype=object))
+    assert player._live.seat_belief("player_1") == pytest.approx(reference.seat_belief("player_1"), abs=1e-12)
