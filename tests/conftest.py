@@ -60,6 +60,27 @@ def bandit_egos(ray_session, tmp_path_factory):
     return {r.config["population"]: TrainedEgo(str(trial_folders(r.path)[0]), r) for r in results}
 
 
+@pytest.fixture(scope="session")
+def blocks_ego(ray_session, tmp_path_factory) -> str:
+    """A modular blocks ego (P1) trained briefly with the 3 training permutations: it knows the rules a little, the
+    conventions hardly. Once per session: the posterior's and its controls' tests adapt the same ego."""
+    from rllib_conv.common.run_folders import trial_folders
+    from rllib_conv.pipelines.train import run
+    from rllib_conv.training import experiment
+
+    folder = tmp_path_factory.mktemp("blocks")
+    overrides = [
+        "name=blocks",
+        "population=blocks-perm",
+        "run.timesteps=4000",
+        "ppo.rollout_per_partner=400",
+        "ppo.minibatch_size=100",
+    ]
+    results = run(experiment.load("tune_configs/bandit_modular.yaml", overrides), storage=folder / "runs")
+    assert not results.errors
+    return str(trial_folders(results[0].path)[0])
+
+
 @dataclass
 class TrainedEgo:
     """A trained ego of a test fixture: its folder (`<trial>/seed=0`) and the Tune result of its trial."""

@@ -19,7 +19,6 @@ from rllib_conv.partners.base import SampledPartner
 from rllib_conv.partners.blocks import TEST_PERMUTATIONS, TRAIN_PERMUTATIONS, PermutationPartner
 from rllib_conv.pipelines.adapt import run_adaptation
 from rllib_conv.pipelines.adapt_config import AdaptConfig
-from tests.adaptation.test_convention_posterior import blocks_ego  # noqa: F401  (the trained blocks ego, a fixture)
 
 ARMS = 8
 
@@ -146,7 +145,7 @@ def test_the_bandit_lookup_adapts_through_the_pipeline_to_the_partners_arm(bandi
 
 
 @pytest.mark.slow
-def test_the_blocks_planner_controls_through_the_pipeline(blocks_ego, tmp_path) -> None:  # noqa: F811
+def test_the_blocks_planner_controls_through_the_pipeline(blocks_ego, tmp_path) -> None:
     # The counts planner learns the test permutation from its moves in the first update and then plays its best
     # response (20); the frozen prior's plan never changes, so neither does its score.
     common = {"runs": [blocks_ego], "split": "test", "partners": ["perm-1032"], "steps": 1280, "episodes": 40}

@@ -232,22 +232,6 @@ def test_a_partner_following_no_known_convention_falls_back_to_fine_tuning(narro
     assert plain["exact_return"].iloc[-1] > plain["exact_return"].iloc[0] + 0.1  # the plain method did learn
 
 
-@pytest.fixture(scope="module")
-def blocks_ego(ray_session, tmp_path_factory) -> str:
-    """A modular blocks ego (P1) trained briefly with the 3 training permutations: it knows the rules a little, the conventions hardly."""
-    folder = tmp_path_factory.mktemp("blocks")
-    overrides = [
-        "name=blocks",
-        "population=blocks-perm",
-        "run.timesteps=4000",
-        "ppo.rollout_per_partner=400",
-        "ppo.minibatch_size=100",
-    ]
-    results = run(experiment.load("tune_configs/bandit_modular.yaml", overrides), storage=folder / "runs")
-    assert not results.errors
-    return str(trial_folders(results[0].path)[0])
-
-
 @pytest.mark.slow
 def test_blocks_adaptation_plays_the_best_response_to_a_recombined_convention_after_one_update(blocks_ego, tmp_path) -> None:
     # A test permutation reads each cell as one of the training permutations does. In the first update's 640
