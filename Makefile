@@ -16,8 +16,9 @@ export PIP_DISABLE_PIP_VERSION_CHECK := 1
 demo: $(STAMP)
 	$(BIN)/rllib-conv demo
 
+# The slowest 25 tests are listed at the end of every run: the suite is to stay under 20 minutes.
 test: $(STAMP) chromium lint
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q --durations=25
 
 # The inner loop: every test that does not train (`-m "not slow"`; see tests/conftest.py), in
 # under 2 minutes on 2 cores. `make test` runs these and the training ones.
