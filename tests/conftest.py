@@ -18,16 +18,24 @@ import pytest
 
 # Fixtures that start Ray to train: a test using one, directly or through another fixture, trains.
 TRAINING_FIXTURES = ("ray_session",)
+# Session fixtures that train or fetch once: under `pytest -n 2 --dist loadgroup` (`make test`) the tests using one
+# run on one worker, so it is built once, not once per worker.
+SHARED_FIXTURES = ("bandit_egos", "blocks_ego", "short_human_cache")
 
 
 @pytest.hookimpl(tryfirst=True)  # before pytest's own hook deselects by `-m`
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Mark `slow` (and warn about) every collected test that reaches a training fixture without the mark."""
+    """Mark `slow` (and warn about) every collected test that reaches a training fixture without the mark; group the
+    tests of each shared session fixture for pytest-xdist."""
     for item in items:
-        uses = [f for f in TRAINING_FIXTURES if f in getattr(item, "fixturenames", ())]
+        fixtures = getattr(item, "fixturenames", ())
+        uses = [f for f in TRAINING_FIXTURES if f in fixtures]
         if uses and item.get_closest_marker("slow") is None:
             item.add_marker(pytest.mark.slow)
             item.warn(pytest.PytestWarning(f"{item.nodeid} trains (uses {uses[0]}) but has no @pytest.mark.slow; marked slow"))
+        shared = [f for f in SHARED_FIXTURES if f in fixtures]
+        if shared:
+            item.add_marker(pytest.mark.xdist_group(shared[0]))
 
 
 @pytest.fixture(scope="session")
