@@ -27,6 +27,7 @@ from analysis.summaries import curve_band, seed_summary, with_value  # noqa: E40
 from rllib_conv.common.methods import (  # noqa: E402
     BC_TRAINED,
     BEYOND_GUARDED,
+    BEYOND_PLASTIC,
     BEYOND_POSTERIOR,
     CONTROL_COUNTS,
     CONTROL_LOOKUP,
@@ -65,6 +66,7 @@ LABEL_STYLES: dict[str, tuple[str, str | tuple]] = {
     BC_TRAINED: ("#88CCEE", (0, (5, 2, 1, 2))),  # cyan, dash-dot: ours trained with the BC proxies (not in the paper)
     BEYOND_POSTERIOR: ("#661100", "-"),  # dark brown, solid: the adapter beyond the paper
     BEYOND_GUARDED: ("#CC6677", (0, (4, 2))),  # rose, dashes: the same adapter, its fine-tuning guarded
+    BEYOND_PLASTIC: ("#EE7733", (0, (2, 1, 2, 4))),  # Tol's vibrant orange, paired dashes: PLASTIC-Policy (k seats)
     # The posterior's information-parity controls: colours and dashes of their own.
     CONTROL_LOOKUP: ("#5D3A9B", (0, (1, 1))),  # deep violet, dense dots
     CONTROL_COUNTS: ("#DDAA33", (0, (10, 2, 2, 2, 2, 2))),  # gold, very long dash, two dots

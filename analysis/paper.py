@@ -18,9 +18,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from rllib_conv.common import adapters
 from rllib_conv.common.methods import (
+    ADAPTED_BY,
     BC_TRAINED,
     BEYOND_GUARDED,
+    BEYOND_PLASTIC,
     BEYOND_POSTERIOR,
     CONTROL_COUNTS,
     CONTROL_LOOKUP,
@@ -87,6 +90,7 @@ LABEL_NAMES: dict[str, str] = {
     BC_TRAINED: "ours λ=0.5 trained with the BC proxies",
     BEYOND_POSTERIOR: "convention posterior (beyond the paper)",
     BEYOND_GUARDED: "guarded convention posterior (beyond the paper)",
+    BEYOND_PLASTIC: "PLASTIC-Policy (beyond the paper)",
     CONTROL_LOOKUP: "control: lookup of the partner's arm, else the task marginal",
     CONTROL_COUNTS: "control: the planner against the partner's counted moves",
     CONTROL_PRIOR: "control: the planner against the frozen prior",
@@ -117,6 +121,13 @@ POPULATION_NAMES: dict[str, str] = {
 def label_name(label: str) -> str:
     """The paper's name for a method label (the label itself when unknown)."""
     return LABEL_NAMES.get(label, label)
+
+
+def information_used(label: str) -> str:
+    """What the adapter behind a method label reads besides the trained ego (`rllib_conv.common.adapters`), for tables."""
+    names = ADAPTED_BY.get(label, (adapters.FRESH,))
+    used = dict.fromkeys(name for a in names for name in adapters.adapter(a).uses["adapt"].names())
+    return ", ".join(used).replace("_", " ")
 
 
 def population_name(population: str) -> str:

@@ -11,7 +11,7 @@ from analysis import figures, paper
 from rllib_conv.common import methods
 from rllib_conv.common.resources import config_file
 
-GAMES = ("bandit", "blocks", "hanabi", "overcooked")
+GAMES = ("bandit", "blocks", "hanabi", "overcooked", "lbf")
 
 
 def test_method_records_take_keywords_only() -> None:

@@ -159,6 +159,7 @@ BC_TRAINED = f"{PAPER_METHOD}-bc"  # ours trained with Overcooked's BC proxies, 
 GUARDED = f"{PAPER_METHOD}-guarded"  # ours, its fine-tuning guarded (not in the paper; Hanabi's plan)
 BEYOND_POSTERIOR = "beyond-posterior"  # ours' egos adapting by the convention posterior (not in the paper)
 BEYOND_GUARDED = "beyond-guarded"  # the same, its fine-tuning guarded (not in the paper)
+BEYOND_PLASTIC = "beyond-plastic"  # ours' egos adapting by PLASTIC-Policy, the ad hoc teamwork reference (k seats)
 # The posterior's information-parity controls (not in the paper; `common.adapters.CONTROLS`).
 CONTROL_LOOKUP = "control-lookup"  # bandit: the partner's arm per seen context, else the task marginal
 CONTROL_COUNTS = "control-counts-planner"  # blocks: the planner against a model of the partner's own moves
@@ -172,6 +173,7 @@ ADAPTED_BY: dict[str, tuple[str, ...]] = {
     HEAD_PENALTY_PICKED: (adapters.PICK,),
     BEYOND_POSTERIOR: (adapters.POSTERIOR,),
     BEYOND_GUARDED: (adapters.POSTERIOR, adapters.GUARD),
+    BEYOND_PLASTIC: (adapters.PLASTIC,),
     CONTROL_LOOKUP: (adapters.LOOKUP,),
     CONTROL_COUNTS: (adapters.COUNTS_PLANNER,),
     CONTROL_PRIOR: (adapters.PRIOR_PLANNER,),
@@ -188,6 +190,7 @@ EXTENSIONS: tuple[str, ...] = (
     BC_TRAINED,
     BEYOND_POSTERIOR,
     BEYOND_GUARDED,
+    BEYOND_PLASTIC,
     *CONTROL_LABELS,
 )
 # Every label of the shipped plans, in the order figures and tables show them.

@@ -316,6 +316,25 @@ def test_quick_overcooked_reproduction_trains_adapts_to_cooks_and_human_proxies_
     assert "overcooked-cramped_room-cooks" in report and "| PPO_BC beats PPO_SP |" in report
 
 
+@pytest.mark.slow
+def test_quick_lbf_reproduction_trains_on_three_seats_and_adapts_to_a_held_out_team_fresh_from_scratch_and_by_plastic(
+    ray_session, tmp_path
+) -> None:
+    out = tmp_path / "repro"
+    assert main(["reproduce", "lbf", "--quick", "--out", str(out)]) == 0
+    game = out / "lbf"
+    # No self-play, new task or oracle on this game: train and adapt are the stages with work.
+    assert sorted(p.stem for p in game.glob("*.done")) == ["adapt", "selfplay", "train"]
+    for label in ("modular-lam0.5", "agg", "scratch", "beyond-plastic"):
+        curves = pd.read_csv(game / "adaptation" / f"lbf-heuristics__{label}.csv")
+        # A new partner is a team, one held-out type per partner seat (the quick plan's first: H3 in both).
+        assert set(curves["partner"]) == {"H3+H3"}, label
+        assert curves["steps"].min() == 0 and curves["steps"].max() >= 1000, label
+        assert curves["mean_return"].between(0, 1).all(), label
+    report = (out / "report" / "report.md").read_text()
+    assert "| lbf-heuristics | beyond-plastic |" in report and "| lbf | lbf-heuristics | ours λ=0.5 |" in report
+
+
 def test_redo_moves_a_stages_outputs_aside_and_runs_it_again(tmp_path, monkeypatch) -> None:
     logs: list[str] = []
     repro = Reproduction(narrow(plan_for("bandit", seeds=3), ["bandit-s2-hand"], ["agg"]), tmp_path, log=logs.append)

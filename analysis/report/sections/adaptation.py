@@ -5,7 +5,7 @@ from __future__ import annotations
 import pandas as pd
 
 from analysis import figures, paper
-from analysis.paper import label_name, population_name
+from analysis.paper import information_used, label_name, population_name
 from analysis.report.context import Context
 from analysis.report.formatting import digits, fmt_summary, md_table
 from analysis.report.verdicts import (
@@ -74,7 +74,8 @@ def summary_table(auc: pd.DataFrame) -> str:
     """Per population and method: the return at the first and last evaluation, the AUC and the gain over not adapting, each with its seed-level interval.
 
     The gain is AUC − return at step 0, per curve: what adapting earned over holding the ego as it was (a frozen
-    ego scores its step-0 return at every point, in expectation), so a negative gain means adapting cost return.
+    ego scores its step-0 return at every point, in expectation), so a negative gain means adapting cost return. The
+    last column says what each method's adapter reads besides the trained ego (`paper.information_used`).
     """
     keys = ["game", "population", "label"]
     auc = auc.assign(gain=auc["auc"] - auc["start"])
@@ -93,6 +94,7 @@ def summary_table(auc: pd.DataFrame) -> str:
                 g["partner"].nunique(),
                 *cells,
                 source,
+                information_used(label),
             ]
         )
     return md_table(
@@ -107,6 +109,7 @@ def summary_table(auc: pd.DataFrame) -> str:
             "AUC",
             "gain over not adapting (AUC − step 0)",
             "return",
+            "information used",
         ],
         rows,
     )

@@ -24,7 +24,7 @@ import numpy as np
 import pandas as pd
 
 from analysis import figures
-from analysis.paper import label_name, population_name
+from analysis.paper import information_used, label_name, population_name
 from analysis.report.context import Context
 from analysis.report.formatting import digits, fmt_summary, md_table
 from analysis.report.verdicts import NOT_SHOWN, Difference, Judgement, advantage, beats_every, no_worse, no_worse_margin
@@ -92,13 +92,6 @@ def control_targets(auc: pd.DataFrame, label: str, places: int) -> list[tuple[st
         judged = beats_every(auc, label, (control,), "auc", WITHIN, places)
         found.append((f"above its control: {label_name(control)}", judged.cell, judged.evidence))
     return found
-
-
-def information_used(label: str) -> str:
-    """What the adapter behind a row reads besides the trained ego (`rllib_conv.common.adapters`), for the table."""
-    names = ADAPTED_BY.get(label, (adapters.FRESH,))
-    used = dict.fromkeys(name for a in names for name in adapters.adapter(a).uses["adapt"].names())
-    return ", ".join(used).replace("_", " ")
 
 
 def beyond_section(ctx: Context) -> str:
