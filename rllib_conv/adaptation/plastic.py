@@ -40,8 +40,8 @@ from rllib_conv.adaptation.convention_posterior import ConventionPosterior
 from rllib_conv.common.seeds import member_seed
 from rllib_conv.envs.seat_views import SeatView
 from rllib_conv.modules import ego_id
-from rllib_conv.modules.multi import team_name
 from rllib_conv.partners.base import Partner
+from rllib_conv.partners.population import team_name
 from rllib_conv.training.evaluate import ego_head_partner
 
 

@@ -3,7 +3,7 @@
 A two-seat game has one partner seat. In a game of k seats, one ego and k-1 partner seats,
 each episode draws a partner for every partner seat (the same partner may sit in several):
 each partner agent maps to its partner's module and the ego to its head for that team of
-partners in seat order (`ego@a+b`, `multi.team_name`), or to the single head when shared.
+partners in seat order (`ego@a+b`, `partners.population.team_name`), or to the single head when shared.
 
 In a `ReplicatedGame` the agents carry their replica (`player_0#2`) and map to that
 replica's modules (`ego@p#2`, `partner@p#2`); every replica counts episodes the same way
@@ -16,8 +16,9 @@ from __future__ import annotations
 from collections import OrderedDict
 from typing import Any
 
-from rllib_conv.modules.multi import AGG_HEAD_ID, REPLICA_SEPARATOR, ego_id, partner_id, replica_id, team_name
+from rllib_conv.modules.multi import AGG_HEAD_ID, REPLICA_SEPARATOR, ego_id, partner_id, replica_id
 from rllib_conv.modules.partner_schedule import RoundRobin
+from rllib_conv.partners.population import team_name
 
 _CACHE = 4096
 

@@ -2,7 +2,7 @@
 
 Module IDs: `task` (the shared task module, mapped to no agent), `ego@<partner>` (the
 ego's head for that partner; `ego` alone for BaselineAgg's single head; `ego@<a>+<b>` for
-the partners `a` and `b` in a game of three seats, `team_name`) and
+the partners `a` and `b` in a game of three seats, `partners.population.team_name`) and
 `partner@<partner>` (the fixed partner). Heads only hold a reference to the task module,
 re-wired whenever modules are built or added, so its weights exist once.
 
@@ -22,17 +22,11 @@ AGG_HEAD_ID = "ego"
 EGO_PREFIX = "ego@"
 PARTNER_PREFIX = "partner@"
 REPLICA_SEPARATOR = "#"
-TEAM_SEPARATOR = "+"  # games of more than two seats: the ego's head for the partners `a` and `b` is `ego@a+b`
 
 
 def ego_id(partner_name: str) -> str:
     """Module ID of the ego head that plays with `partner_name`."""
     return EGO_PREFIX + partner_name
-
-
-def team_name(partner_names: list[str] | tuple[str, ...]) -> str:
-    """The name of the partners of one episode, one per partner seat in seat order (`a+b`); one partner is its own name."""
-    return TEAM_SEPARATOR.join(partner_names)
 
 
 def partner_id(partner_name: str) -> str:

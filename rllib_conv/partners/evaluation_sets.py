@@ -8,13 +8,22 @@ per task. A set is a YAML manifest:
     role: heldout                      # or validation
     env: bandit
     env_config: {symmetric: 2}
-    partner_agent: player_1            # the seat the partners play; the ego plays the other
+    partner_agent: player_1            # the seat the partners play (k seats: a list); the ego plays the other
     built_by: how the set was made (the generator, the command, the choices)
     description: what it holds and why
     partners:                          # scripted partners: a kind with its parameters
       - {name: conv-low-high, kind: bandit_convention, params: {arms: [0, 5, 2, 3]}}
     populations:                       # members of a population: a built-in name or a population folder
       - {population: populations/bandit-s2-selfplay, split: test}   # optional `members: [names]`
+    bounds: {conv-low-high: 1.0}       # only where the game has no exact best-response bound (below)
+    bounds_by: how the bounds were measured (the commands)
+
+With several partner seats (Level-Based Foraging: `partner_agent: [player_1, player_2]`) the
+ego meets every **team** of the set's partners, one per partner seat (`Population.teams`; `H3+H4`), as
+`rllib-conv adapt` does by default. A game without an exact best-response bound (the record's
+`best_response_return`; any game of more than two seats) is scored against the bounds the set
+declares per partner or team, with `bounds_by` saying how they were measured (a best response
+trained against each, as jax-aht's are): not an exact bound, so a score can exceed 1.
 
 Trained partners (self-play seeds) enter through `populations`: the manifest names a
 population folder (`rllib-conv partners train` wrote it) rather than carrying weights.
@@ -29,7 +38,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, PositiveFloat, ValidationError, model_validator
 
 from rllib_conv.common.config_files import describe
 from rllib_conv.common.resources import evaluation_set_file, evaluation_sets
@@ -67,12 +76,21 @@ class EvaluationSet(_Manifest):
     role: Role
     env: str
     env_config: dict[str, Any] = Field(default_factory=dict)
-    partner_agent: str = "player_1"
+    partner_agent: str | list[str] = "player_1"
     built_by: str = Field(min_length=1)
     description: str = ""
     partners: list[SetPartner] = Field(default_factory=list)
     populations: list[SetPopulation] = Field(default_factory=list)
+    # Declared best-response bounds per partner (k seats: per team), for games without an exact one.
+    bounds: dict[str, PositiveFloat] = Field(default_factory=dict)
+    bounds_by: str = ""
     source: str = Field("", exclude=True)  # the file it was read from (relative population paths start there)
+
+    @model_validator(mode="after")
+    def _bounds_say_how(self) -> "EvaluationSet":
+        if self.bounds and not self.bounds_by.strip():
+            raise ValueError("bounds_by: say how the declared bounds were measured (the commands that made them)")
+        return self
 
     def resolve(self) -> Population:
         """The set as a `Population` (every member in split `test`); ValueError naming the set's file and the problem."""
@@ -93,6 +111,9 @@ class EvaluationSet(_Manifest):
             pop.validate_partners()
         except (TypeError, ValueError) as exc:  # an unknown kind, a bad parameter, a duplicate name
             raise ValueError(f"{self._where()}: {' '.join(str(exc).split())}") from None
+        stray = sorted(set(self.bounds) - {name for name, _ in pop.teams()})
+        if stray:
+            raise ValueError(f"{self._where()}: bounds for {stray}, which are not partners (or teams) of the set")
         return pop
 
     def _members(self, ref: SetPopulation) -> list[PartnerEntry]:

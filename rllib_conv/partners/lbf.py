@@ -21,7 +21,8 @@ its own seeded generator: `action_probs` says which.
 
 Built-in population `lbf-heuristics`: the default 3-player game, the partners in `player_1`
 and `player_2`; H1 and H2 train (every episode seats one of them in each partner seat), H3
-and H4, their level-aware variants, are held out.
+and H4, their level-aware variants, are held out. `lbf-heldout-types` trains with H3 and H4:
+its egos' heads are the trained best responses that bound the held-out evaluation set.
 """
 
 from __future__ import annotations
@@ -120,4 +121,19 @@ def lbf_heuristics() -> Population:
     )
 
 
+def lbf_heldout_types() -> Population:
+    """H3 and H4 as training partners (no test split): trains the best responses that bound the held-out LBF set."""
+    return from_partners(
+        "lbf-heldout-types",
+        "lbf",
+        {"players": 3},
+        [LBFHeuristic(rule, rule=rule) for rule in ("H3", "H4")],
+        [],
+        description="Level-Based Foraging's held-out types H3, H4 to train with: a head per team is a best response to it "
+        "(the bounds of tune_configs/eval_sets/lbf_heldout.yaml)",
+        partner_agent=["player_1", "player_2"],
+    )
+
+
 register_builtin("lbf-heuristics", lbf_heuristics)
+register_builtin("lbf-heldout-types", lbf_heldout_types)

@@ -17,6 +17,7 @@ loads a manifest from disk.
 
 from __future__ import annotations
 
+import itertools
 import json
 from pathlib import Path
 from typing import Any, Callable, Literal
@@ -32,6 +33,14 @@ from rllib_conv.partners.base import Partner
 from rllib_conv.partners.kinds import partner_from_spec
 
 Split = Literal["train", "test"]
+
+
+TEAM_SEPARATOR = "+"  # games of more than two seats: the partners `a` and `b` of one episode are the team `a+b`
+
+
+def team_name(partner_names: list[str] | tuple[str, ...]) -> str:
+    """The name of the partners of one episode, one per partner seat in seat order (`a+b`); one partner is its own name."""
+    return TEAM_SEPARATOR.join(partner_names)
 
 
 class PartnerEntry(BaseModel):
@@ -82,6 +91,11 @@ class Population(BaseModel):
     def partner_agents(self) -> list[str]:
         """The partner seats, one or more: every seat a partner of this population plays, in order."""
         return [self.partner_agent] if isinstance(self.partner_agent, str) else list(self.partner_agent)
+
+    def teams(self, split: Split | None = None) -> list[tuple[str, list[PartnerEntry]]]:
+        """(name, one entry per partner seat) for every team of `split`'s partners in seat order; one seat: each partner alone."""
+        combos = itertools.product(self.entries(split), repeat=len(self.partner_agents))
+        return [(team_name([e.name for e in combo]), list(combo)) for combo in combos]
 
     def entries(self, split: Split | None = None) -> list[PartnerEntry]:
         """Return the entries of `split` (all entries if None), in manifest order."""

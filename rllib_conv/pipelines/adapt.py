@@ -91,10 +91,10 @@ from rllib_conv.common.run_folders import ADAPT, RL_MODULE_DIR, trial_folders
 from rllib_conv.common.seeds import pick_seed
 from rllib_conv.envs.seat_views import seat_view
 from rllib_conv.modules import partner_id
-from rllib_conv.modules.multi import AGG_HEAD_ID, TASK_ID, TEAM_SEPARATOR, replica_id, team_name
+from rllib_conv.modules.multi import AGG_HEAD_ID, TASK_ID, replica_id
 from rllib_conv.modules.packed.stacked_multi import STACK_ID
 from rllib_conv.partners.base import Partner
-from rllib_conv.partners.population import PartnerEntry, Population
+from rllib_conv.partners.population import TEAM_SEPARATOR, PartnerEntry, Population, team_name
 from rllib_conv.pipelines.adapt_config import AdaptConfig
 from rllib_conv.training.algorithm import Replica, build_algorithm, packing_key
 from rllib_conv.training.callbacks import STEPS_DONE, STEPS_TOTAL

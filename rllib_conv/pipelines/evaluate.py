@@ -6,9 +6,14 @@ For every (ego, partner) of the set (`partners.evaluation_sets`):
   both players' action probabilities), else the mean of `episodes` sampled episodes (64, as
   jax-aht);
 - the partner's **best-response bound**: the expected score of the best ego against that
-  partner, computed exactly by the game (`envs.best_response_return`);
+  partner, computed exactly by the game (`envs.best_response_return`), or, where the game has
+  none, the bound the set declares (`bounds`: a best response trained against that partner,
+  as jax-aht's; `bound_source` says which);
 - the **normalised score**, return / bound. A partner whose bound is 0 (no ego can score
-  with it) measures nothing and is refused, as is a game without an exact bound.
+  with it) measures nothing and is refused, as is one without any bound.
+
+With several partner seats (Level-Based Foraging) a "partner" is a team, one of the set's
+partners per partner seat, and the ego meets every team (`Population.teams`).
 
 Per agent (one RUNS argument; its egos are the seeds) the mean and the IQM of the normalised
 scores, each with a bootstrap interval that resamples seeds (`common.aggregates`). The
@@ -38,11 +43,11 @@ from rllib_conv.common.atomic_files import replaced_atomically, write_text_atomi
 from rllib_conv.common.run_folders import trial_name  # noqa: E402
 from rllib_conv.modules.multi import AGG_HEAD_ID, TASK_ID  # noqa: E402
 from rllib_conv.partners.base import Partner  # noqa: E402
-from rllib_conv.partners.population import Population  # noqa: E402
+from rllib_conv.partners.population import PartnerEntry, Population  # noqa: E402
 from rllib_conv.pipelines.evaluate_config import EvaluateConfig, Evaluation, TrainedEgo  # noqa: E402
 from rllib_conv.pipelines.pair import module_player  # noqa: E402
 from rllib_conv.training.checkpoints import last_checkpoint  # noqa: E402
-from rllib_conv.training.evaluate import load_module, player_return  # noqa: E402
+from rllib_conv.training.evaluate import load_module, seated_return  # noqa: E402
 
 SCORES_FILE, SUMMARY_FILE, FIGURE_FILE = "scores.csv", "summary.json", "summary.png"
 SCORE_COLUMNS = [
@@ -57,6 +62,7 @@ SCORE_COLUMNS = [
     "episodes",
     "stderr",
     "bound",
+    "bound_source",
     "normalised",
 ]
 SUMMARY_COLUMNS = ["agent", "seeds", "partners", "mean", "mean_low", "mean_high", "iqm", "iqm_low", "iqm_high", "return"]
@@ -83,44 +89,62 @@ def load_player(ego: TrainedEgo, module_id: str | None, seed: int) -> Player:
     return Player(ego, chosen, module_player(module, chosen, trial_name(ego.trial), seed))
 
 
-def bounds(partners: Population, ego_agent: str, where: str) -> dict[str, float]:
-    """Each partner's best-response bound; ValueError naming the set and partner where it is unknown or 0."""
+def bounds(
+    partners: Population, ego_agent: str, where: str, declared: dict[str, float] | None = None
+) -> dict[str, tuple[float, str]]:
+    """(bound, "exact" or "declared") per partner (team); ValueError naming the set and partner where it is unknown or 0."""
+    declared = declared or {}
     out = {}
-    for entry in partners.partners:
-        bound = envs.best_response_return(partners.env, partners.env_config, ego_agent, entry.build())
+    for name, members in partners.teams():
+        if name in declared:
+            bound, source = declared[name], "declared"
+        elif len(members) == 1:
+            bound, source = envs.best_response_return(partners.env, partners.env_config, ego_agent, members[0].build()), "exact"
+        else:
+            bound, source = None, "exact"
         if bound is None:
             raise ValueError(
-                f"{where}: partner {entry.name!r} (kind {entry.kind}) has no exact best-response bound on {partners.env} "
-                "(it does not say what its actions are drawn from, or learns while it plays)"
+                f"{where}: partner {name!r} (kind {_kind(members)}) has no exact best-response bound on {partners.env} "
+                "(it does not say what its actions are drawn from, or learns while it plays, or the game has none) "
+                "and the set declares none (`bounds:`)"
             )
         if bound <= 0:
-            raise ValueError(f"{where}: partner {entry.name!r} has a best-response bound of {bound:g}: no ego can score with it")
-        out[entry.name] = bound
+            raise ValueError(f"{where}: partner {name!r} has a best-response bound of {bound:g}: no ego can score with it")
+        out[name] = (bound, source)
     return out
 
 
-def score_table(players: list[Player], partners: Population, episodes: int, seed: int, where: str = "set") -> pd.DataFrame:
-    """One row per (player, partner): the return (exact where the game has one), the bound and the normalised score."""
+def _kind(members: list[PartnerEntry]) -> str:
+    return "+".join(e.kind for e in members)
+
+
+def score_table(
+    players: list[Player],
+    partners: Population,
+    episodes: int,
+    seed: int,
+    where: str = "set",
+    declared: dict[str, float] | None = None,
+) -> pd.DataFrame:
+    """One row per (player, partner or team): the return (exact where the game has one), the bound and the normalised score."""
     env = envs.make_scored(partners.env, **partners.env_config)
-    ego_agent = next(a for a in env.possible_agents if a != partners.partner_agent)
-    bound = bounds(partners, ego_agent, where)
+    seats = partners.partner_agents
+    ego_agent = next(a for a in env.possible_agents if a not in seats)
+    bound = bounds(partners, ego_agent, where, declared)
     exact_return = envs.game(partners.env).exact_return
     rows = []
     for p in players:
-        for entry in partners.partners:
-            partner = entry.build()
-            seats = {ego_agent: p.player, partners.partner_agent: partner}
-            exact = exact_return(seats, partners.env_config) if exact_return else None
+        for name, members in partners.teams():
+            seated = {ego_agent: p.player, **{seat: entry.build() for seat, entry in zip(seats, members)}}
+            exact = exact_return(seated, partners.env_config) if exact_return else None
             if exact is not None:
                 value, source, played, stderr = exact, "exact", 0, 0.0
             else:  # a game, or a player, without an exact return: sampled episodes
-                out = player_return(
-                    p.player, partners.env, partners.env_config, partner, ego_agent, partners.partner_agent, episodes, seed
-                )
+                out = seated_return(seated, partners.env, partners.env_config, episodes, seed)
                 value, source, played, stderr = out["mean"], "sampled", episodes, out["stderr"]
             rows.append(
-                [p.ego.agent, trial_name(p.ego.trial), p.ego.seed, p.module, entry.name, entry.kind]
-                + [value, source, played, stderr, bound[entry.name], value / bound[entry.name]]
+                [p.ego.agent, trial_name(p.ego.trial), p.ego.seed, p.module, name, _kind(members)]
+                + [value, source, played, stderr, *bound[name], value / bound[name][0]]
             )
     return pd.DataFrame(rows, columns=SCORE_COLUMNS)
 
@@ -146,7 +170,8 @@ def summarise(table: pd.DataFrame, resamples: int = 9999, confidence: float = 0.
 def evaluate(cfg: EvaluateConfig, found: Evaluation) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Score every ego `check` found against its set; the per-(ego, partner) table and the per-agent summary."""
     players = [load_player(ego, cfg.module, cfg.seed) for ego in found.egos]
-    table = score_table(players, found.partners, cfg.episodes, cfg.seed, where=f"--eval-set {cfg.eval_set!r}")
+    where = f"--eval-set {cfg.eval_set!r}"
+    table = score_table(players, found.partners, cfg.episodes, cfg.seed, where, found.eval_set.bounds)
     return table, summarise(table, cfg.resamples, cfg.confidence, cfg.seed)
 
 
@@ -172,7 +197,7 @@ def summary_record(
         "bounds": table.drop_duplicates("partner").set_index("partner")["bound"].to_dict(),
         "per_seed": per_seed.rename(columns={"normalised": "mean_normalised"}).to_dict("records"),
         "aggregates": [{k: _json_value(v) for k, v in row.items()} for row in summary.to_dict("records")],
-        "method": "normalised = return / best-response bound; mean and IQM (25% trimmed) of every (seed, partner) score; "
+        "method": "normalised = return / best-response bound (exact, or as the set declares: `bounds_by`); mean and IQM (25% trimmed) of every (seed, partner) score; "
         f"{cfg.confidence:.0%} percentile bootstrap intervals resampling seeds ({cfg.resamples} resamples, seed {cfg.seed})",
     }
 

@@ -112,13 +112,20 @@ def check(cfg: EvaluateConfig) -> Evaluation:
             f"was trained on {env} {env_config}"
         )
     for ego, (_, _, seat) in zip(egos, games):
-        if seat != eval_set.partner_agent:
+        if _seats(seat) != partners.partner_agents:
             raise ValueError(
-                f"{where}: its partners play seat {eval_set.partner_agent}, but the ego in {str(ego.trial)!r} "
-                f"was trained with its partner in seat {seat}"
+                f"{where}: its partners play seat(s) {partners.partner_agents}, but the ego in {str(ego.trial)!r} "
+                f"was trained with its partners in {_seats(seat)}"
             )
-    if envs.game(env).best_response_return is None:
+    exact = envs.game(env).best_response_return is not None and len(partners.partner_agents) == 1
+    unbounded = [name for name, _ in partners.teams() if name not in eval_set.bounds]
+    if not exact and unbounded:
         raise ValueError(
-            f"{where}: game {env!r} has no exact best-response bound to normalise by (the bandit and blocks have one)"
+            f"{where}: game {env!r} has no exact best-response bound to normalise by (the bandit and blocks have one; "
+            f"no game of more than two seats), and the set declares none (`bounds:`, with `bounds_by`) for {unbounded}"
         )
     return Evaluation(egos, eval_set, partners, env, env_config)
+
+
+def _seats(seat: str | list[str]) -> list[str]:
+    return [seat] if isinstance(seat, str) else list(seat)

@@ -30,8 +30,8 @@ from rllib_conv.common.methods import method
 from rllib_conv.common.run_folders import EVAL_FILE, REPLICA_PREFIX, TRAIN, replica_folder
 from rllib_conv.envs.oracles import has_oracle
 from rllib_conv.learners.marginal_learner import HEAD_L2_KEY, MARGINAL_REG_KEY
-from rllib_conv.modules.multi import AGG_HEAD_ID, TASK_ID, partner_id, replica_id, team_name
-from rllib_conv.partners.population import with_absolute_paths
+from rllib_conv.modules.multi import AGG_HEAD_ID, TASK_ID, partner_id, replica_id
+from rllib_conv.partners.population import team_name, with_absolute_paths
 from rllib_conv.training.algorithm import Replica, build_algorithm
 from rllib_conv.training.callbacks import STEPS_DONE, STEPS_TOTAL
 from rllib_conv.training.ego_setup import EgoSetup, resolve

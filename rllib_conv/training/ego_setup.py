@@ -14,9 +14,8 @@ from dataclasses import dataclass, field
 from rllib_conv import envs, partners
 from rllib_conv.common.methods import method
 from rllib_conv.modules import AGG_HEAD_ID, ego_id
-from rllib_conv.modules.multi import team_name
 from rllib_conv.modules.partner_schedule import load_function
-from rllib_conv.partners.population import PartnerEntry, Population
+from rllib_conv.partners.population import PartnerEntry, Population, team_name
 from rllib_conv.training.experiment import ExperimentConfig
 
 

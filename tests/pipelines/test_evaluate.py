@@ -88,11 +88,11 @@ def test_a_partner_no_ego_can_score_with_or_without_a_known_bound_is_refused() -
 
 def test_the_summary_aggregates_over_seeds_per_agent() -> None:
     rows = [
-        ["a", f"e{s}", s, "ego", p, "k", v, "exact", 0, 0.0, 1.0, v]
+        ["a", f"e{s}", s, "ego", p, "k", v, "exact", 0, 0.0, 1.0, "exact", v]
         for s, values in enumerate([[1.0, 0.5], [0.5, 0.0]])
         for p, v in zip(["p", "q"], values)
     ]
-    rows += [["b", "e0", 0, "ego", p, "k", 0.4, "exact", 0, 0.0, 1.0, 0.4] for p in ("p", "q")]
+    rows += [["b", "e0", 0, "ego", p, "k", 0.4, "exact", 0, 0.0, 1.0, "exact", 0.4] for p in ("p", "q")]
     summary = summarise(pd.DataFrame(rows, columns=SCORE_COLUMNS), resamples=999).set_index("agent")
     assert list(summary.reset_index().columns) == SUMMARY_COLUMNS
     a, b = summary.loc["a"], summary.loc["b"]
