@@ -12,6 +12,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("RAY_DEDUP_LOGS", "0")
 
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -20,7 +21,7 @@ import pytest
 TRAINING_FIXTURES = ("ray_session",)
 # Session fixtures that train or fetch once: under `pytest -n 2 --dist loadgroup` (`make test`) the tests using one
 # run on one worker, so it is built once, not once per worker.
-SHARED_FIXTURES = ("bandit_egos", "blocks_ego", "short_human_cache")
+SHARED_FIXTURES = ("bandit_egos", "blocks_ego", "lbf_ego", "short_human_cache")
 
 
 @pytest.hookimpl(tryfirst=True)  # before pytest's own hook deselects by `-m`
@@ -87,6 +88,25 @@ def blocks_ego(ray_session, tmp_path_factory) -> str:
     results = run(experiment.load("tune_configs/bandit_modular.yaml", overrides), storage=folder / "runs")
     assert not results.errors
     return str(trial_folders(results[0].path)[0])
+
+
+@pytest.fixture(scope="session")
+def lbf_ego(ray_session, tmp_path_factory) -> Path:
+    """A tiny modular ego trained on lbf-heuristics (3 players, heads for H1/H2 teams); its trial folder. Once per
+    session: the k-seat adaptation and evaluation tests read the same ego."""
+    pytest.importorskip("lbforaging")
+    import yaml
+
+    from rllib_conv.cli import main
+    from rllib_conv.common.run_folders import trial_folders
+
+    root = tmp_path_factory.mktemp("lbf")
+    config = root / "lbf3.yaml"
+    tiny = {"name": "lbf3", "population": "lbf-heuristics", "model": {"hidden": 8}}
+    config.write_text(yaml.safe_dump({**tiny, "ppo": {"rollout_per_partner": 50, "num_epochs": 1}, "run": {"timesteps": 200}}))
+    assert main(["train", str(config), "--storage", str(root / "runs")]) == 0
+    (trial,) = trial_folders(root / "runs" / "lbf3")
+    return trial
 
 
 @dataclass

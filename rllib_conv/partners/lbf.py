@@ -108,30 +108,37 @@ class LBFHeuristic(SampledPartner):
         )
 
 
-def lbf_heuristics() -> Population:
-    """The 3-player population of heuristic foragers: H1 and H2 to train with, H3 and H4 held out."""
+def _three_players(name: str, train: tuple[str, ...], test: tuple[str, ...], description: str) -> Population:
+    """A 3-player population of heuristic types (`train`, `test`: rules), the partners in `player_1` and `player_2`."""
     return from_partners(
-        "lbf-heuristics",
+        name,
         "lbf",
         {"players": 3},
-        [LBFHeuristic(rule, rule=rule) for rule in ("H1", "H2")],
-        [LBFHeuristic(rule, rule=rule) for rule in ("H3", "H4")],
-        description="Level-Based Foraging's heuristic types, 3 players: H1, H2 train; H3, H4 (level-aware) held out",
+        [LBFHeuristic(rule, rule=rule) for rule in train],
+        [LBFHeuristic(rule, rule=rule) for rule in test],
+        description=description,
         partner_agent=["player_1", "player_2"],
+    )
+
+
+def lbf_heuristics() -> Population:
+    """The 3-player population of heuristic foragers: H1 and H2 to train with, H3 and H4 held out."""
+    return _three_players(
+        "lbf-heuristics",
+        ("H1", "H2"),
+        ("H3", "H4"),
+        "Level-Based Foraging's heuristic types, 3 players: H1, H2 train; H3, H4 (level-aware) held out",
     )
 
 
 def lbf_heldout_types() -> Population:
     """H3 and H4 as training partners (no test split): trains the best responses that bound the held-out LBF set."""
-    return from_partners(
+    return _three_players(
         "lbf-heldout-types",
-        "lbf",
-        {"players": 3},
-        [LBFHeuristic(rule, rule=rule) for rule in ("H3", "H4")],
-        [],
-        description="Level-Based Foraging's held-out types H3, H4 to train with: a head per team is a best response to it "
+        ("H3", "H4"),
+        (),
+        "Level-Based Foraging's held-out types H3, H4 to train with: an ego trained with them is a best response to them "
         "(the bounds of tune_configs/eval_sets/lbf_heldout.yaml)",
-        partner_agent=["player_1", "player_2"],
     )
 
 

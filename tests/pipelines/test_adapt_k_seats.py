@@ -6,13 +6,11 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
-import yaml
 
 from rllib_conv import partners
 from rllib_conv.adaptation.registry import check_seats
 from rllib_conv.cli import main
 from rllib_conv.common.config_files import checked
-from rllib_conv.common.run_folders import trial_folders
 from rllib_conv.pipelines.adapt import CURVE_COLUMNS, adaptation_curves, parse_team, run_adaptations
 from rllib_conv.pipelines.adapt_config import AdaptConfig
 
@@ -35,18 +33,6 @@ def test_what_adapts_one_partners_heads_is_refused_with_three_seats_and_allowed_
         check_seats(start, "lbf", 3)
     for allowed in ("fresh", "plastic", "guard"):
         check_seats(allowed, "lbf", 3)
-
-
-@pytest.fixture(scope="module")
-def lbf_ego(ray_session, tmp_path_factory) -> Path:
-    """A tiny modular ego trained on lbf-heuristics (3 players, heads for H1/H2 teams); its trial folder."""
-    root = tmp_path_factory.mktemp("lbf")
-    config = root / "lbf3.yaml"
-    tiny = {"name": "lbf3", "population": "lbf-heuristics", "model": {"hidden": 8}}
-    config.write_text(yaml.safe_dump({**tiny, "ppo": {"rollout_per_partner": 50, "num_epochs": 1}, "run": {"timesteps": 200}}))
-    assert main(["train", str(config), "--storage", str(root / "runs")]) == 0
-    (trial,) = trial_folders(root / "runs" / "lbf3")
-    return trial
 
 
 @pytest.mark.slow
