@@ -203,7 +203,8 @@ class Reproduction:
             runs = self.egos(egos_of)
             if covers(self.root / ADAPTATION_DIR / f"{name}.csv", runs):
                 continue
-            names = [e.name for e in partners.get(target).entries("test")][: self.plan.adapt_partners]
+            # Every held-out partner, or with several partner seats every team of them (`H3+H4`), as `adapt` does.
+            names = [name for name, _ in partners.get(target).teams("test")][: self.plan.adapt_partners]
             if not names:  # a self-play population whose test pairs all failed their gate
                 continue
             raw = _merge({"name": name, "population": target, "partners": names}, {**self.plan.adapt_overrides, **settings})
