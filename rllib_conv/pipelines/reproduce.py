@@ -197,14 +197,18 @@ class Reproduction:
             return True
         return bool(partners.get(population).entries("test"))
 
+    def adapt_partners(self, population: str) -> list[str]:
+        """The new partners the egos of `population` adapt to: its held-out partners, or with several partner seats every
+        team of them (`H3+H4`), as `rllib-conv adapt` does; the plan's `adapt_partners` first ones."""
+        return [name for name, _ in partners.get(population).teams("test")][: self.plan.adapt_partners]
+
     def stage_adapt(self) -> None:
         configs = []
         for target, name, settings, egos_of in self.adapt_jobs():
             runs = self.egos(egos_of)
             if covers(self.root / ADAPTATION_DIR / f"{name}.csv", runs):
                 continue
-            # Every held-out partner, or with several partner seats every team of them (`H3+H4`), as `adapt` does.
-            names = [name for name, _ in partners.get(target).teams("test")][: self.plan.adapt_partners]
+            names = self.adapt_partners(target)
             if not names:  # a self-play population whose test pairs all failed their gate
                 continue
             raw = _merge({"name": name, "population": target, "partners": names}, {**self.plan.adapt_overrides, **settings})

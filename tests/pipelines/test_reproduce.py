@@ -8,6 +8,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from rllib_conv import partners
 from rllib_conv.cli import main
 from rllib_conv.common.resources import config_file
 from rllib_conv.common.run_folders import CONFIG_FILE, EVAL_FILE, MARGINALS_FILE, read_marker
@@ -113,6 +114,14 @@ def test_narrow_rejects_unknown_names(populations, methods, match) -> None:
 def _train_only(monkeypatch, calls: list[str]) -> None:
     """Reproductions whose only stage is a stand-in `train` that records each call."""
     monkeypatch.setattr(Reproduction, "stages", lambda self: [("train", lambda: calls.append(self.plan.game))])
+
+
+def test_egos_adapt_to_every_held_out_partner_and_with_several_partner_seats_to_every_team_of_them() -> None:
+    bandit = Reproduction(plan_for("bandit"), Path("unused"))
+    assert bandit.adapt_partners("bandit-s2-hand") == [e.name for e in partners.get("bandit-s2-hand").entries("test")]
+    lbf = Reproduction(plan_for("lbf"), Path("unused"))
+    assert lbf.adapt_partners("lbf-heuristics") == ["H3+H3", "H3+H4", "H4+H3", "H4+H4"]
+    assert Reproduction(plan_for("lbf", quick=True), Path("unused")).adapt_partners("lbf-heuristics") == ["H3+H3"]
 
 
 def test_a_stage_reruns_only_when_the_plan_asks_for_more_than_its_marker_covers(tmp_path, monkeypatch) -> None:
