@@ -22,7 +22,7 @@ its own seeded generator: `action_probs` says which.
 Built-in population `lbf-heuristics`: the default 3-player game, the partners in `player_1`
 and `player_2`; H1 and H2 train (every episode seats one of them in each partner seat), H3
 and H4, their level-aware variants, are held out. `lbf-heldout-types` trains with H3 and H4:
-its egos' heads are the trained best responses that bound the held-out evaluation set.
+an ego trained with them is the trained best response that bounds the held-out evaluation set.
 """
 
 from __future__ import annotations
