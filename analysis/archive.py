@@ -7,7 +7,7 @@ again without the run folder, its checkpoints or Ray. What is copied, per game f
 
 - the plan and the stage markers (`plan.json`, `*.done`);
 - the per-curve and per-seed tables: adaptation and zero-shot CSVs, `marginals.csv`,
-  `heldout.csv`, cross-play matrices, self-play reports;
+  `heldout.csv`, cross-play matrices, self-play reports, the evaluation sets' scores and summaries;
 - per trained ego: its resolved config (with its seal), its final evaluation (`eval.json`)
   and its training curve (`progress.csv`), never its checkpoints.
 
@@ -25,6 +25,7 @@ from rllib_conv.common.run_folders import (
     CONFIG_FILE,
     CROSSPLAY_DIR,
     EVAL_FILE,
+    EVALUATION_DIR,
     HELDOUT_FILE,
     MARGINALS_FILE,
     MARKER_SUFFIX,
@@ -46,6 +47,8 @@ GAME_FILES: tuple[str, ...] = (
     f"{ZEROSHOT_DIR}/*.csv",
     f"{CROSSPLAY_DIR}/*.csv",
     f"{POPULATIONS_DIR}/*/{SELFPLAY_REPORT_FILE}",
+    f"{EVALUATION_DIR}/*/summary.json",
+    f"{EVALUATION_DIR}/*/scores.csv",
 )
 TRIAL_FILES: tuple[str, ...] = (CONFIG_FILE, digest_path(CONFIG_FILE).name, EVAL_FILE, "progress.csv")
 

@@ -26,6 +26,7 @@ from rllib_conv.common.run_folders import (
     ADAPTATION_DIR,
     CROSSPLAY_DIR,
     EVAL_FILE,
+    EVALUATION_DIR,
     EXPERIMENT_SEPARATOR,
     GAME_MARKERS,
     HELDOUT_FILE,
@@ -505,6 +506,35 @@ def load_selfplay_reports(root: str | Path) -> pd.DataFrame:
 
 
 HELDOUT_COLUMNS = ["game", "agent", "seed", "player", "partner", "episodes", "mean_return", "stderr"]
+EVALUATION_COLUMNS = ["game", "population", "set", "role", "label", "seeds", "partners", "mean", "mean_low", "mean_high"]
+EVALUATION_COLUMNS += ["iqm", "iqm_low", "iqm_high", "return", "bounds"]
+
+
+def load_evaluations(root: str | Path) -> pd.DataFrame:
+    """The field's protocol stage (`<game>/evaluation/<population>__<role>/summary.json`, written by `rllib-conv
+    evaluate`): one row per (game, population, set, method) with its aggregates. Columns `EVALUATION_COLUMNS`;
+    `bounds` says whether the set's bounds are exact or declared (trained best responses)."""
+    rows = []
+    for game_dir in game_dirs(root):
+        for summary in sorted((game_dir / EVALUATION_DIR).glob("*/summary.json")):
+            record = json.loads(summary.read_text())
+            population, role = split_experiment(summary.parent.name)
+            declared = bool(record["eval_set"].get("bounds"))
+            for agg in record["aggregates"]:
+                rows.append(
+                    {
+                        "game": game_of(game_dir),
+                        "population": population,
+                        "set": record["eval_set"]["name"],
+                        "role": role,
+                        "label": split_experiment(agg["agent"])[1],
+                        **{k: agg[k] for k in ("seeds", "partners", "mean", "mean_low", "mean_high", "iqm", "iqm_low")},
+                        "iqm_high": agg["iqm_high"],
+                        "return": agg["return"],
+                        "bounds": "declared" if declared else "exact",
+                    }
+                )
+    return pd.DataFrame(rows, columns=EVALUATION_COLUMNS)
 
 
 def load_heldout(root: str | Path) -> pd.DataFrame:

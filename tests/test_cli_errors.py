@@ -112,8 +112,11 @@ CASES = [
     (["evaluate", "trial", "--eval-set", "test"], "--eval-set 'test': 'test' is neither heldout nor validation"),
     (["evaluate", "trial", "--eval-set", "bad.yaml"], "--eval-set 'bad.yaml': evaluation set 'bad.yaml' is not valid YAML"),
     (["evaluate", "trial", "--eval-set", "exp.yaml"], "evaluation set 'exp.yaml': role: Field required"),
-    (["evaluate", "trial"], "--eval-set 'heldout' is for bandit {'symmetric': 2}, but the ego in 'trial' was trained on bandit"),
-    (["evaluate", "trial", "--eval-set", BLOCKS_SET], "is for blocks {'new_task': False}, but the ego in 'trial'"),
+    (["evaluate", "trial"], "--eval-set 'heldout': the set is for bandit {'symmetric': 2}, the egos were trained on bandit"),
+    (
+        ["evaluate", "trial", "--eval-set", BLOCKS_SET],
+        "the set is for blocks {'new_task': False}, the egos were trained on bandit",
+    ),
     (["evaluate", "trial", "--confidence", "1.5"], "--confidence: Input should be less than 1"),
     (["evaluate", "trial", "--episodes", "0"], "argument --episodes"),
     # reproductions and reports

@@ -11,6 +11,7 @@ from analysis.report.context import Context
 from analysis.report.sections.adaptation import adaptation_section
 from analysis.report.sections.beyond import beyond_section
 from analysis.report.sections.differences import differences_section
+from analysis.report.sections.evaluation import evaluation_section
 from analysis.report.sections.heldout import heldout_section
 from analysis.report.sections.marginals import marginals_section
 from analysis.report.sections.selfplay import selfplay_section
@@ -26,6 +27,11 @@ POOLED_STATISTICS = (
     "population, and the interval is over the population means (n = populations); paired differences pair within "
     "(population, seed, test partner) and are averaged up the same way."
 )
+
+
+def _present(section: str) -> list[str]:
+    """A section that may be empty, as a list to splice into the body: nothing where it is empty (no blank line)."""
+    return [section] if section else []
 
 
 def build_report(root: str | Path, out: str | Path | None = None, user_study: Iterable[str | Path] | None = None) -> Path:
@@ -51,6 +57,7 @@ def build_report(root: str | Path, out: str | Path | None = None, user_study: It
         beyond_section(ctx),
         zeroshot_section(ctx),
         heldout_section(ctx),
+        *_present(evaluation_section(ctx)),
         marginals_section(ctx),
         user_study_section(ctx),
         training_section(ctx),

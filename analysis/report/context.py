@@ -42,6 +42,7 @@ class Context:
         self.selfplay = loaders.load_selfplay_reports(root)
         self.crossplay = loaders.load_crossplay(root)
         self.heldout = loaders.load_heldout(root)
+        self.evaluations = loaders.load_evaluations(root)
         live = list(user_study) if user_study is not None else ([root / "user_study"] if (root / "user_study").is_dir() else [])
         self.live_study_paths = live
         self.comparisons: list[Comparison] = []

@@ -227,7 +227,7 @@ def _reproduce(command: Callable[..., argparse.ArgumentParser]) -> None:
     )
     p.add_argument(
         "--redo",
-        choices=["adapt", "zeroshot", "marginals", "heldout"],
+        choices=["adapt", "zeroshot", "marginals", "heldout", "evaluate"],
         help="run this finished stage again for the plan's experiments; their old outputs move to <out>/<game>/superseded/",
     )
     p.add_argument(

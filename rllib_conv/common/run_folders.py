@@ -55,7 +55,8 @@ SELFPLAY_TRIAL_FILE = "selfplay.json"  # one self-play pair's outcome, in its tr
 # --- the stages and their Tune runs ---------------------------------------------------------
 # The stages of a reproduction, in order; all but `marginals` run as one Tune run each.
 SELFPLAY, TRAIN, ADAPT, ZEROSHOT, MARGINALS, HELDOUT = "selfplay", "train", "adapt", "zeroshot", "marginals", "heldout"
-STAGES: tuple[str, ...] = (SELFPLAY, TRAIN, ADAPT, ZEROSHOT, MARGINALS, HELDOUT)
+EVALUATE = "evaluate"  # the field's protocol: trained egos against the game's evaluation sets (no Tune run)
+STAGES: tuple[str, ...] = (SELFPLAY, TRAIN, ADAPT, ZEROSHOT, MARGINALS, HELDOUT, EVALUATE)
 # One self-play, adapt or zero-shot config runs as the Tune run `<stage>-<name>`; several (a
 # `reproduce` stage) as one Tune run `<stage>-stage-<hash of their spec>`, whose trials write
 # their results into each config's own outputs. The train stage's run is always the latter:
@@ -93,6 +94,7 @@ MARGINALS_FILE_COLUMNS = (
     "states",
 )
 HELDOUT_FILE = "heldout.csv"  # the held-out evaluation: one row per (agent, seed, partner)
+EVALUATION_DIR = "evaluation"  # `<population>__<set role>/`: `rllib-conv evaluate`'s scores.csv, summary.json, summary.png
 MARKER_SUFFIX = ".done"
 # What marks a folder as one game of a reproduction.
 GAME_MARKERS: tuple[str, ...] = (PLAN_FILE, RUNS_DIR, ADAPTATION_DIR, ZEROSHOT_DIR, MARGINALS_FILE, POPULATIONS_DIR)

@@ -98,10 +98,10 @@ def bounds(
     for name, members in partners.teams():
         if name in declared:
             bound, source = declared[name], "declared"
-        elif len(members) == 1:
-            bound, source = envs.best_response_return(partners.env, partners.env_config, ego_agent, members[0].build()), "exact"
-        else:
-            bound, source = None, "exact"
+        else:  # exact, for one partner seat where the game knows it
+            one = len(members) == 1
+            bound = envs.best_response_return(partners.env, partners.env_config, ego_agent, members[0].build()) if one else None
+            source = "exact"
         if bound is None:
             raise ValueError(
                 f"{where}: partner {name!r} (kind {_kind(members)}) has no exact best-response bound on {partners.env} "

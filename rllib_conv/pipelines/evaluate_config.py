@@ -106,26 +106,28 @@ def check(cfg: EvaluateConfig) -> Evaluation:
     except ValueError as exc:
         raise ValueError(f"--eval-set {cfg.eval_set!r}: {exc}") from None
     where = f"--eval-set {cfg.eval_set!r}"
-    if eval_set.env != env or not same_settings(env, eval_set.env_config, env_config):
-        raise ValueError(
-            f"{where} is for {eval_set.env} {eval_set.env_config}, but the ego in {str(egos[0].trial)!r} "
-            f"was trained on {env} {env_config}"
-        )
     for ego, (_, _, seat) in zip(egos, games):
-        if _seats(seat) != partners.partner_agents:
-            raise ValueError(
-                f"{where}: its partners play seat(s) {partners.partner_agents}, but the ego in {str(ego.trial)!r} "
-                f"was trained with its partners in {_seats(seat)}"
-            )
-    exact = envs.game(env).best_response_return is not None and len(partners.partner_agents) == 1
-    unbounded = [name for name, _ in partners.teams() if name not in eval_set.bounds]
-    if not exact and unbounded:
-        raise ValueError(
-            f"{where}: game {env!r} has no exact best-response bound to normalise by (the bandit and blocks have one; "
-            f"no game of more than two seats), and the set declares none (`bounds:`, with `bounds_by`) for {unbounded}"
-        )
+        try:
+            check_fit(eval_set, partners, env, env_config, seat)
+        except ValueError as exc:
+            raise ValueError(f"{where}: {exc} (the ego in {str(ego.trial)!r})") from None
     return Evaluation(egos, eval_set, partners, env, env_config)
 
 
-def _seats(seat: str | list[str]) -> list[str]:
-    return [seat] if isinstance(seat, str) else list(seat)
+def check_fit(eval_set: EvaluationSet, partners: Population, env: str, env_config: dict[str, Any], seat: str | list[str]) -> None:
+    """ValueError unless egos trained on `env` `env_config` with partners in `seat`(s) can meet `eval_set` (resolved:
+    `partners`), each of its partners (teams) with a best-response bound, exact or declared."""
+    if eval_set.env != env or not same_settings(env, eval_set.env_config, env_config):
+        raise ValueError(f"the set is for {eval_set.env} {eval_set.env_config}, the egos were trained on {env} {env_config}")
+    seats = [seat] if isinstance(seat, str) else list(seat)
+    if seats != partners.partner_agents:
+        raise ValueError(
+            f"the set's partners play seat(s) {partners.partner_agents}, the egos were trained with partners in {seats}"
+        )
+    exact = envs.game(env).best_response_return is not None and len(seats) == 1
+    unbounded = [name for name, _ in partners.teams() if name not in eval_set.bounds]
+    if not exact and unbounded:
+        raise ValueError(
+            f"game {env!r} has no exact best-response bound to normalise by (the bandit and blocks have one; "
+            f"no game of more than two seats), and the set declares none (`bounds:`, with `bounds_by`) for {unbounded}"
+        )

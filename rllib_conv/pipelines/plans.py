@@ -25,12 +25,14 @@ from typing import Any
 
 from pydantic import Field, NonNegativeFloat, PositiveInt, ValidationError, model_validator
 
-from rllib_conv import envs
+from rllib_conv import envs, partners
 from rllib_conv.adaptation.registry import FRESH, check_game, check_information
 from rllib_conv.common import config_files
 from rllib_conv.common.config_files import Strict
 from rllib_conv.common.resources import available, config_file
 from rllib_conv.common.seeds import population_seed
+from rllib_conv.partners.evaluation_sets import Role, shipped_set
+from rllib_conv.pipelines.evaluate_config import check_fit
 from rllib_conv.pipelines.selfplay_config import SelfPlayConfig
 
 # The registered games the package ships a plan for: what `reproduce all` runs.
@@ -99,6 +101,9 @@ class Plan:
     # Self-play entry -> its independently trained populations (`<name>-p0`, ...), for entries with `populations` > 1.
     population_groups: dict[str, list[str]] = field(default_factory=dict)
     declared_seeds: int | None = None  # the seeds the plan's claims need, declared before the run (`full.seeds`)
+    # Population -> evaluation sets (heldout, validation: the game's shipped ones) its egos meet (`rllib-conv evaluate`).
+    evaluate: dict[str, list[str]] = field(default_factory=dict)
+    evaluate_overrides: dict[str, Any] = field(default_factory=dict)  # `EvaluateConfig` settings (episodes, resamples)
 
 
 # --- the file's schema ------------------------------------------------------------------------
@@ -171,6 +176,12 @@ class ScaleSpec(Strict):
     zeroshot_overrides: dict[str, Any] = Field(default_factory=dict)
     adapt_to: dict[str, list[str]] = Field(default_factory=dict)
     heldout: HeldoutSpec | None = None
+    evaluate: dict[str, list[Role]] = Field(
+        default_factory=dict,
+        description="population -> the game's shipped evaluation sets (heldout, validation) that every method trained on it "
+        "meets after training (`rllib-conv evaluate`: normalised scores, mean and IQM over seeds)",
+    )
+    evaluate_overrides: dict[str, Any] = Field(default_factory=dict, description="settings of `rllib-conv evaluate`")
 
     @model_validator(mode="after")
     def _selfplay_entries(self) -> "ScaleSpec":
@@ -212,6 +223,7 @@ class PlanFile(Strict):
             check(spec.adapt_variants, self.adapt_variants, f"{scale}.adapt_variants")
             trained = {**spec.populations, **{sp.get("name"): spec.selfplay_methods for sp in spec.selfplay}}
             check(list(spec.adapt_to), trained, f"{scale}.adapt_to")
+            check(list(spec.evaluate), spec.populations, f"{scale}.evaluate")
             targets: dict[tuple[str, str], str] = {}
             for source, others in spec.adapt_to.items():
                 for other in others:
@@ -294,6 +306,14 @@ def plan_for(
             check_game(start, game, {}, "player_0")
         except ValueError as exc:
             raise ValueError(f"plan file {str(source)!r}: adapt_variants.{label}: {exc}") from None
+    for population, roles in scale.evaluate.items():
+        pop = partners.get(population)
+        for role in roles:
+            try:
+                eval_set = shipped_set(game, role)
+                check_fit(eval_set, eval_set.resolve(), pop.env, pop.env_config, pop.partner_agent)
+            except ValueError as exc:
+                raise ValueError(f"plan file {str(source)!r}: evaluate.{population}: {role}: {exc}") from None
     if seeds is None:
         seeds = spec.full.seeds or DEFAULT_SEEDS
     selfplay, groups = expand_selfplay(scale.selfplay, game)
@@ -318,6 +338,8 @@ def plan_for(
         no_worse_margin=spec.no_worse_margin,
         adapt_to=expand_adapt_to(scale.adapt_to, groups),
         heldout=scale.heldout,
+        evaluate=scale.evaluate,
+        evaluate_overrides=scale.evaluate_overrides,
         population_groups=groups,
         declared_seeds=None if quick else spec.full.seeds,
     )

@@ -12,6 +12,7 @@ lands under `<out>/<game>/`:
 | `zeroshot` | the three zero-shot steps (bandit, blocks) | `zeroshot/<experiment>.csv` |
 | `marginals` | task-module distance to the true marginals, every finished ego in `runs/` | `marginals.csv` |
 | `heldout` | named agents with every member of a held-out population (Carroll et al.'s PPO_SP and PPO_BC with H_proxy) | `heldout.csv` |
+| `evaluate` | every method trained on a population against the game's evaluation sets the plan names (`rllib-conv evaluate`) | `evaluation/<population>__<set>/` |
 
 A finished stage leaves `<stage>.done`: its wall time, then the experiments it covered.
 Running the command again skips a stage whose marker covers everything the plan asks of it;
@@ -24,7 +25,7 @@ Egos train for the paper's budget (blocks: 1M env steps). `train_steps` (`--trai
 sets another; the train marker names each experiment's budget, so a folder trained with a
 different one is not taken as done, and `fit` then refuses to mix the two.
 
-`redo` (`--redo adapt|zeroshot|marginals|heldout`) runs a finished stage again for the plan's
+`redo` (`--redo adapt|zeroshot|marginals|heldout|evaluate`) runs a finished stage again for the plan's
 experiments, after a default or the code changed: their outputs (CSV and Tune folder) move
 to `superseded/<time>/` under the game folder, never deleted, and the marker stops
 covering them. Without it an unchanged config would find its finished Tune experiment and
@@ -33,6 +34,7 @@ return the old results.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import shutil
 import time
@@ -50,6 +52,8 @@ from rllib_conv.common.run_folders import (
     ADAPT,
     ADAPTATION_DIR,
     EVAL_FILE,
+    EVALUATE,
+    EVALUATION_DIR,
     HELDOUT,
     HELDOUT_FILE,
     MARGINALS,
@@ -79,6 +83,9 @@ from rllib_conv.common.run_folders import (
 from rllib_conv.envs.oracles import has_oracle
 from rllib_conv.pipelines.adapt import run_adaptations
 from rllib_conv.pipelines.adapt_config import AdaptConfig
+from rllib_conv.pipelines.evaluate import write_evaluation
+from rllib_conv.pipelines.evaluate_config import EvaluateConfig
+from rllib_conv.pipelines.evaluate_config import check as check_evaluation
 from rllib_conv.pipelines.heldout import HeldoutAgent, members_agent, play_heldout, selfplay_agent, trained_agent
 from rllib_conv.pipelines.marginal_report import marginal_report
 from rllib_conv.pipelines.plans import GAMES, AdaptVariant, HeldoutAgentSpec, Plan, TrainedVariant, narrow, plan_for
@@ -91,7 +98,13 @@ from rllib_conv.training.experiment import ExperimentConfig
 
 # Stages `redo` can run again: the folder of each experiment's CSV (its Tune folder beside it), or the stage's one file. Training and
 # self-play feed every later stage, so redoing those means a fresh output folder.
-REDO_OUTPUTS = {ADAPT: ADAPTATION_DIR, ZEROSHOT: ZEROSHOT_DIR, MARGINALS: MARGINALS_FILE, HELDOUT: HELDOUT_FILE}
+REDO_OUTPUTS = {
+    ADAPT: ADAPTATION_DIR,
+    ZEROSHOT: ZEROSHOT_DIR,
+    MARGINALS: MARGINALS_FILE,
+    HELDOUT: HELDOUT_FILE,
+    EVALUATE: EVALUATION_DIR,
+}
 # What a problem in a stage's config is blamed on: the plan builds them, no file or `--set` holds them.
 ARGUMENTS = "arguments"
 
@@ -275,6 +288,20 @@ class Reproduction:
         with replaced_atomically(self.root / HELDOUT_FILE) as tmp:
             table.to_csv(tmp, index=False)
 
+    def stage_evaluate(self) -> None:
+        seeds = set(self.plan.seeds)
+        for name in self.stage_experiments(EVALUATE):
+            population, role = split_experiment(name)
+            runs = [str(self.runs / self.experiment(population, m)["name"]) for m in self.plan.populations[population]]
+            raw = {**self.plan.evaluate_overrides, "runs": runs, "eval_set": role}
+            cfg = config_files.checked(raw, EvaluateConfig, ARGUMENTS).first
+            found = check_evaluation(cfg)
+            found = dataclasses.replace(found, egos=[e for e in found.egos if e.seed in seeds])  # this plan's seeds only
+            self.log(f"[{self.plan.game}] evaluate: {len(found.egos)} egos of {population} against {found.eval_set.name}")
+            command = ["rllib-conv", "evaluate", *runs, "--eval-set", role]
+            command += [f"--{k}={v}" for k, v in self.plan.evaluate_overrides.items()]
+            write_evaluation(cfg, found, self.root / EVALUATION_DIR / name, command)
+
     def stages(self) -> list[tuple[str, Callable[[], None]]]:
         """The plan's stages, in order."""
         stages = [(SELFPLAY, self.stage_selfplay), (TRAIN, self.stage_train), (ADAPT, self.stage_adapt)]
@@ -284,6 +311,8 @@ class Reproduction:
             stages.append((MARGINALS, self.stage_marginals))
         if self.plan.heldout is not None:
             stages.append((HELDOUT, self.stage_heldout))
+        if self.plan.evaluate:
+            stages.append((EVALUATE, self.stage_evaluate))
         return stages
 
     def run(self) -> dict[str, float]:
@@ -335,6 +364,8 @@ class Reproduction:
         items = self.stage_items(stage)
         if stage in (MARGINALS, HELDOUT):  # one file, no Tune run
             outputs = [self.root / REDO_OUTPUTS[stage]]
+        elif stage == EVALUATE:  # a folder per (population, set), no Tune run
+            outputs = [self.root / EVALUATION_DIR / n for n in self.stage_experiments(stage)]
         else:
             folder = REDO_OUTPUTS[stage]
             names = self.stage_experiments(stage)
@@ -365,6 +396,7 @@ class Reproduction:
             ZEROSHOT: zeroshot,
             MARGINALS: sorted(n for n in {*trained, *zeroshot} if self.has_marginals(n)),
             HELDOUT: sorted(self.plan.heldout.agents) if self.plan.heldout else [],
+            EVALUATE: [experiment_name(p, role) for p, roles in self.plan.evaluate.items() for role in roles],
         }[stage]
 
     def stage_items(self, stage: str) -> list[str]:

@@ -36,13 +36,15 @@ def test_stage_times() -> None:
     st = loaders.load_stage_times(FIXTURE).set_index("stage")
     assert list(st.index) == list(loaders.STAGES)
     # Every stage of the bandit's plan is done; it has no held-out evaluation.
-    assert st["done"].drop("heldout").all() and not st.loc["heldout", "expected"]
+    assert st["done"].drop(["heldout", "evaluate"]).all() and not st.loc[["heldout", "evaluate"], "expected"].any()
     # The .done markers read "65.0 s", "30.8 s", "104.4 s", "0.0 s", "0.1 s".
     assert st.loc["train", "seconds"] == 65.0 and st.loc["adapt", "seconds"] == 30.8 and st.loc["zeroshot", "seconds"] == 104.4
 
 
 def test_expected_stages() -> None:
-    assert loaders.expected_stages("bandit") == tuple(s for s in loaders.STAGES if s != "heldout")  # older than that stage
+    assert loaders.expected_stages("bandit") == tuple(
+        s for s in loaders.STAGES if s not in ("heldout", "evaluate")
+    )  # older than those
     assert loaders.expected_stages("blocks", quick=True) == ("selfplay", "train", "adapt", "marginals")
     assert loaders.expected_stages("hanabi") == ("selfplay", "train", "adapt")
 

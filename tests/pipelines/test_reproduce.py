@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
+import yaml
 
 from rllib_conv import partners
 from rllib_conv.cli import main
@@ -122,6 +123,23 @@ def test_egos_adapt_to_every_held_out_partner_and_with_several_partner_seats_to_
     lbf = Reproduction(plan_for("lbf"), Path("unused"))
     assert lbf.adapt_partners("lbf-heuristics") == ["H3+H3", "H3+H4", "H4+H3", "H4+H4"]
     assert Reproduction(plan_for("lbf", quick=True), Path("unused")).adapt_partners("lbf-heuristics") == ["H3+H3"]
+
+
+@pytest.mark.parametrize(
+    ("evaluate", "message"),
+    [
+        ({"bandit-s9-hand": ["heldout"]}, r"full.evaluate: \['bandit-s9-hand'\] not defined"),
+        ({"bandit-s3-hand": ["heldout"]}, r"evaluate.bandit-s3-hand: heldout: the set is for bandit \{'symmetric': 2\}"),
+        ({"bandit-s2-hand": ["test"]}, r"full.evaluate.bandit-s2-hand.0: Input should be 'heldout' or 'validation'"),
+    ],
+)
+def test_a_plan_that_evaluates_what_it_does_not_train_or_what_cannot_meet_the_set_is_refused(tmp_path, evaluate, message) -> None:
+    raw = yaml.safe_load(config_file("plan_bandit.yaml").read_text())
+    raw["full"]["evaluate"] = evaluate
+    plan = tmp_path / "plan.yaml"
+    plan.write_text(yaml.safe_dump(raw))
+    with pytest.raises(ValueError, match=message):
+        plan_for("bandit", path=plan)
 
 
 def test_a_stage_reruns_only_when_the_plan_asks_for_more_than_its_marker_covers(tmp_path, monkeypatch) -> None:
@@ -332,16 +350,23 @@ def test_quick_lbf_reproduction_trains_on_three_seats_and_adapts_to_a_held_out_t
     out = tmp_path / "repro"
     assert main(["reproduce", "lbf", "--quick", "--out", str(out)]) == 0
     game = out / "lbf"
-    # No self-play, new task or oracle on this game: train and adapt are the stages with work.
-    assert sorted(p.stem for p in game.glob("*.done")) == ["adapt", "selfplay", "train"]
+    # No self-play, new task or oracle on this game: train, adapt and the field's protocol are the stages with work.
+    assert sorted(p.stem for p in game.glob("*.done")) == ["adapt", "evaluate", "selfplay", "train"]
     for label in ("modular-lam0.5", "agg", "scratch", "beyond-plastic"):
         curves = pd.read_csv(game / "adaptation" / f"lbf-heuristics__{label}.csv")
         # A new partner is a team, one held-out type per partner seat (the quick plan's first: H3 in both).
         assert set(curves["partner"]) == {"H3+H3"}, label
         assert curves["steps"].min() == 0 and curves["steps"].max() >= 1000, label
         assert curves["mean_return"].between(0, 1).all(), label
+    # Every method's egos against every team of the held-out types, normalised by the set's declared bounds.
+    scores = pd.read_csv(game / "evaluation" / "lbf-heuristics__heldout" / "scores.csv")
+    assert set(scores["agent"]) == {"lbf-heuristics__modular-lam0.5", "lbf-heuristics__agg"}
+    assert len(scores) == 2 * 4 and (scores["bound_source"] == "declared").all() and (scores["episodes"] == 4).all()
     report = (out / "report" / "report.md").read_text()
-    assert "| lbf-heuristics | beyond-plastic |" in report and "| lbf | lbf-heuristics | ours λ=0.5 |" in report
+    assert (
+        "| lbf-heuristics | PLASTIC-Policy (beyond the paper) |" in report and "| lbf | lbf-heuristics | ours λ=0.5 |" in report
+    )
+    assert "### lbf: lbf-heuristics egos against `lbf-heldout` (declared bounds)" in report
 
 
 def test_redo_moves_a_stages_outputs_aside_and_runs_it_again(tmp_path, monkeypatch) -> None:
@@ -368,5 +393,7 @@ def test_redo_moves_a_stages_outputs_aside_and_runs_it_again(tmp_path, monkeypat
     monkeypatch.setattr(Reproduction, "stages", lambda self: [("zeroshot", lambda: calls.append("zeroshot"))])
     repro.run()
     assert calls == ["zeroshot"] and set(read_marker(tmp_path / "zeroshot.done")[1]) == {other, *items}
-    with pytest.raises(ValueError, match=r"--redo: expected one of \['adapt', 'heldout', 'marginals', 'zeroshot'\], got 'train'"):
+    with pytest.raises(
+        ValueError, match=r"--redo: expected one of \['adapt', 'evaluate', 'heldout', 'marginals', 'zeroshot'\], got 'train'"
+    ):
         repro.redo("train")
