@@ -44,6 +44,14 @@ def test_defaults_are_the_papers_per_game() -> None:
     assert (exp.model.hidden, exp.ppo.num_epochs, exp.run.timesteps) == (12, 20, 10_000)
 
 
+def test_a_rollout_shorter_than_the_games_minibatch_shrinks_the_default_minibatch_not_one_given() -> None:
+    short = ExperimentConfig(population="x", ppo={"rollout_per_partner": 50}).resolve("lbf")  # lbf's minibatch: 250
+    assert (short.ppo.rollout_per_partner, short.ppo.minibatch_size) == (50, 50)
+    given = ExperimentConfig(population="x", ppo={"rollout_per_partner": 50, "minibatch_size": 40}).resolve("lbf")
+    assert given.ppo.minibatch_size == 40
+    assert ExperimentConfig(population="x").resolve("lbf").ppo.minibatch_size == 250
+
+
 @pytest.mark.parametrize(
     ("data", "match"),
     [

@@ -70,6 +70,10 @@ class ExperimentConfig(Strict):
         for key in ("rollout_per_partner", "minibatch_size", "num_epochs"):
             if getattr(out.ppo, key) is None:
                 setattr(out.ppo, key, d[key])
+        if self.ppo.minibatch_size is None and out.ppo.minibatch_size > out.ppo.rollout_per_partner:
+            # A shorter rollout than the game's, with its minibatch left to the game: RLlib would refuse a minibatch
+            # larger than the train batch inside the trial, so the default shrinks to one rollout.
+            out.ppo.minibatch_size = out.ppo.rollout_per_partner
         out.run.timesteps = out.run.timesteps or d["timesteps"]
         return out
 
