@@ -46,8 +46,8 @@ def test_every_stage_run_is_told_from_an_experiment_by_its_prefix() -> None:
     runs += [stage_run_name(s, ["pop__m"], {}) for s in ("adapt", "zeroshot", "selfplay")]
     assert all(r.startswith(STAGE_PREFIXES) for r in runs)
     assert not "pop__modular-lam0.5".startswith(STAGE_PREFIXES)
-    assert STAGES == ("selfplay", "train", "adapt", "zeroshot", "marginals", "heldout")
-    assert expected_stages("bandit") == STAGES[:5]  # older folders: the held-out stage came later
+    assert STAGES == ("selfplay", "train", "adapt", "zeroshot", "marginals", "heldout", "evaluate")
+    assert expected_stages("bandit") == STAGES[:5]  # older folders: the held-out and evaluate stages came later
 
 
 def test_a_marker_names_its_stage_and_holds_its_time_then_its_items(tmp_path: Path) -> None:
