@@ -506,8 +506,9 @@ def load_selfplay_reports(root: str | Path) -> pd.DataFrame:
 
 
 HELDOUT_COLUMNS = ["game", "agent", "seed", "player", "partner", "episodes", "mean_return", "stderr"]
-EVALUATION_COLUMNS = ["game", "population", "set", "role", "label", "seeds", "partners", "mean", "mean_low", "mean_high"]
-EVALUATION_COLUMNS += ["iqm", "iqm_low", "iqm_high", "return", "bounds"]
+# Per method, as `rllib-conv evaluate` writes them in summary.json's `aggregates`.
+EVALUATION_AGGREGATES = ["seeds", "partners", "mean", "mean_low", "mean_high", "iqm", "iqm_low", "iqm_high", "return"]
+EVALUATION_COLUMNS = ["game", "population", "set", "role", "label", *EVALUATION_AGGREGATES, "bounds"]
 
 
 def load_evaluations(root: str | Path) -> pd.DataFrame:
@@ -528,9 +529,7 @@ def load_evaluations(root: str | Path) -> pd.DataFrame:
                         "set": record["eval_set"]["name"],
                         "role": role,
                         "label": split_experiment(agg["agent"])[1],
-                        **{k: agg[k] for k in ("seeds", "partners", "mean", "mean_low", "mean_high", "iqm", "iqm_low")},
-                        "iqm_high": agg["iqm_high"],
-                        "return": agg["return"],
+                        **{k: agg[k] for k in EVALUATION_AGGREGATES},
                         "bounds": "declared" if declared else "exact",
                     }
                 )
