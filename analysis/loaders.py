@@ -533,7 +533,9 @@ def load_evaluations(root: str | Path) -> pd.DataFrame:
                         "bounds": "declared" if declared else "exact",
                     }
                 )
-    return pd.DataFrame(rows, columns=EVALUATION_COLUMNS)
+    table = pd.DataFrame(rows, columns=EVALUATION_COLUMNS)
+    # One seed has no interval: summary.json holds null, the tables NaN.
+    return table.astype({k: float for k in EVALUATION_AGGREGATES if k not in ("seeds", "partners")})
 
 
 def load_heldout(root: str | Path) -> pd.DataFrame:

@@ -29,11 +29,6 @@ POOLED_STATISTICS = (
 )
 
 
-def _present(section: str) -> list[str]:
-    """A section that may be empty, as a list to splice into the body: nothing where it is empty (no blank line)."""
-    return [section] if section else []
-
-
 def build_report(root: str | Path, out: str | Path | None = None, user_study: Iterable[str | Path] | None = None) -> Path:
     """Build `report.md` and its figures for the reproduction under `root`; return the report's path.
 
@@ -57,7 +52,7 @@ def build_report(root: str | Path, out: str | Path | None = None, user_study: It
         beyond_section(ctx),
         zeroshot_section(ctx),
         heldout_section(ctx),
-        *_present(evaluation_section(ctx)),
+        evaluation_section(ctx),
         marginals_section(ctx),
         user_study_section(ctx),
         training_section(ctx),
@@ -82,7 +77,9 @@ def build_report(root: str | Path, out: str | Path | None = None, user_study: It
         + (POOLED_STATISTICS if ctx.kinds else ""),
         "",
     ]
-    text = "\n".join(head + [body[0], "", differences_section(ctx), ""] + [b + "\n" for b in body[1:]])
+    text = "\n".join(
+        head + [body[0], "", differences_section(ctx), ""] + [b + "\n" for b in body[1:] if b]
+    )  # a section with nothing to say leaves no line
     path = out / "report.md"
     path.write_text(text)
     if (out / DATA_DIR).resolve() != root.resolve():  # not a rebuild from the report's own data

@@ -45,7 +45,6 @@ where an adapter chooses a trained head (pick, posterior, plastic), `picked`.
 
 from __future__ import annotations
 
-import itertools
 import math
 from collections.abc import Hashable, Sequence
 from dataclasses import dataclass
@@ -524,9 +523,10 @@ def adaptation_curves(cfg: AdaptConfig) -> list[dict[str, str]]:
             pop = partners.get(cfg.population or trained.population)
             split = [e.name for e in pop.entries(cfg.split)]
             if len(pop.partner_agents) > 1:  # every team of the split, or the teams given (each by its canonical name)
-                teams = [parse_team(pop, name) for name in cfg.partners] if cfg.partners else None
-                teams = teams or list(itertools.product(split, repeat=len(pop.partner_agents)))
-                names = [team_name(team) for team in teams]
+                if cfg.partners:
+                    names = [team_name(parse_team(pop, name)) for name in cfg.partners]
+                else:
+                    names = [name for name, _ in pop.teams(cfg.split)]
             else:
                 names = cfg.partners or split
                 unknown = set(names) - {e.name for e in pop.partners}

@@ -8,18 +8,9 @@ no plan ran the stage, so reports of plans without it are unchanged.
 
 from __future__ import annotations
 
-import math
-
 from analysis.paper import label_name, population_name
 from analysis.report.context import Context
-from analysis.report.formatting import md_table
-
-
-def _cell(value: float, low: float | None, high: float | None, seeds: int) -> str:
-    """`value [low, high] (n=seeds)`; no interval where the bootstrap gave none (one seed)."""
-    if low is None or high is None or (isinstance(low, float) and math.isnan(low)):
-        return f"{value:.3f} (n={seeds}, no interval)"
-    return f"{value:.3f} [{low:.3f}, {high:.3f}] (n={seeds})"
+from analysis.report.formatting import fmt_ci, md_table
 
 
 def evaluation_section(ctx: Context) -> str:
@@ -40,8 +31,8 @@ def evaluation_section(ctx: Context) -> str:
         rows = [
             [
                 label_name(r["label"]),
-                _cell(r["mean"], r["mean_low"], r["mean_high"], r["seeds"]),
-                _cell(r["iqm"], r["iqm_low"], r["iqm_high"], r["seeds"]),
+                fmt_ci(r["mean"], r["mean_low"], r["mean_high"], r["seeds"]),
+                fmt_ci(r["iqm"], r["iqm_low"], r["iqm_high"], r["seeds"]),
                 r["partners"],
                 f"{r['return']:.3f}",
             ]
