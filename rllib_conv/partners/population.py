@@ -132,9 +132,9 @@ class Population(BaseModel):
         names the file and the bad key.
         """
         path = Path(path)
-        if path.is_dir():
+        if _exists(path) and path.is_dir():
             path = path / POPULATION_FILE
-        if not path.is_file():
+        if not _exists(path) or not path.is_file():
             raise ValueError(f"population manifest {str(path)!r} does not exist")
         try:
             data = yaml.safe_load(path.read_text())  # YAML is a superset of JSON
@@ -180,13 +180,24 @@ def names() -> list[str]:
     return [name for name in _BUILTINS if name not in _READY or _READY[name]()]
 
 
+def _exists(path: Path) -> bool:
+    """`path.exists()`, but a name the file system refuses (too long, say) is a file that does not exist.
+
+    `Path.exists` raises OSError for ENAMETOOLONG; a config's population string is user input.
+    """
+    try:
+        return path.exists()
+    except OSError:
+        return False
+
+
 def population_ref(name_or_path: str) -> str:
     """`name_or_path` as the stages hand it to their trials: a built-in's name as is, an existing manifest's path made absolute.
 
     Tune runs each trial in its own working folder, so a path relative to where a command
     started would name nothing there.
     """
-    if name_or_path in _BUILTINS or not Path(name_or_path).exists():
+    if name_or_path in _BUILTINS or not _exists(Path(name_or_path)):
         return name_or_path
     return str(Path(name_or_path).resolve())
 
@@ -206,7 +217,7 @@ def get(name_or_path: str | Path) -> Population:
     if str(name_or_path) in _BUILTINS:
         return _BUILTINS[str(name_or_path)]()
     path = Path(name_or_path)
-    if path.suffix in (".json", ".yaml", ".yml") or path.exists():
+    if path.suffix in (".json", ".yaml", ".yml") or _exists(path):
         return Population.load(path)
     raise ValueError(f"unknown population {str(name_or_path)!r}: not a built-in ({', '.join(names())}) nor a manifest file")
 

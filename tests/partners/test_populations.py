@@ -87,6 +87,14 @@ def test_unknown_population_and_missing_manifest(tmp_path) -> None:
         partners.get(str(tmp_path / "broken.json"))
 
 
+@pytest.mark.parametrize("name", ["9" * 4000, "9" * 4000 + ".json"])
+def test_a_name_too_long_for_the_file_system_is_an_unknown_population(name: str) -> None:
+    # Path.exists raises OSError (ENAMETOOLONG) for such a name; a config's population is user input.
+    with pytest.raises(ValueError, match="unknown population|does not exist"):
+        partners.get(name)
+    assert population_ref(name) == name
+
+
 def test_relative_checkpoints_resolve_against_the_manifest_folder(tmp_path) -> None:
     pop = partners.get("blocks-perm")
     pop.partners[0].checkpoint = "partners/p0"
