@@ -76,6 +76,9 @@ class GameRecord:
     # Env settings every measured score uses, over the training ones (`registry.make_scored`): Overcooked
     # trains on a shaped reward but is scored on soups delivered alone, as Carroll et al. report it.
     scoring: dict[str, Any] = field(default_factory=dict)
+    # The events a seat's reward can weight instead of the game's (the env's `hidden_utility` option, {seat: {event:
+    # weight}}): hidden-utility self-play (HSP) draws its biased partners' weights over them. (): the game has none.
+    events: tuple[str, ...] = ()
     # Import paths of the modules that register its scripted partner kinds and built-in
     # populations: they sit in the partners layer, above this one, so the record names them
     # and `rllib_conv.partners` imports them.

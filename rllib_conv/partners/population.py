@@ -56,6 +56,8 @@ class PartnerEntry(BaseModel):
     seed: int | None = None
     score: float | None = None
     counterpart: dict[str, Any] | None = None
+    # HSP (`hidden_utility` in a self-play config): the event weights its seat was rewarded by, {event: weight}.
+    hidden_utility: dict[str, float] | None = None
 
     def build(self) -> Partner:
         """Return the `Partner` this entry describes."""

@@ -32,6 +32,12 @@ With `trajectory_diversity` (TrajeDi, Lupu et al., ICML 2021) the pairs train to
 same way, and the learner adds `-beta * JSD` per seat, JSD the Jensen-Shannon divergence of
 the pairs' trajectory distributions (`learners.trajectory_diversity`, with
 `trajectory_discount`); it may be combined with `population_entropy`.
+
+With `hidden_utility` (hidden-utility self-play, HSP; Yu et al., ICLR 2023) each pair trains
+alone in the env config `SelfPlayConfig.pair_env_config` gives it: its partner seat rewarded
+by a weighted count of its own events (`envs/overcooked/hidden_utility.py`), the weights
+drawn from the pair's seed; the counterpart plays for the game's reward and the gate scores
+the game. Each partner's manifest entry and report row keep its weights.
 """
 
 from __future__ import annotations
@@ -147,7 +153,7 @@ def build_selfplay_config(cfg: SelfPlayConfig) -> PPOConfig:
     return (
         base_ppo_config(
             RLlibGame,
-            game_env_config(cfg.env, cfg.env_config),
+            game_env_config(cfg.env, cfg.pair_env_config(pair_seed(cfg.seed, cfg.pair))),
             cfg.ppo,
             cfg.run,
             pair_seed(cfg.seed, cfg.pair),
@@ -312,7 +318,7 @@ class SelfPlayTrainable(AlgorithmTrainable):
             )
             if cfg.fcp:
                 self._snapshot(iteration, steps, out["gate_check"])
-            if out["gate_check"] >= gate.score or budget_spent:
+            if (out["gate_check"] >= gate.score and gate.stop) or budget_spent:
                 for m, pair in self.members:
                     self.score[pair] = selfplay_score(module, cfg, gate.episodes, seed=pair_seed(cfg.seed, pair), member=m)
                     self.passed[pair] = self.score[pair] >= gate.score
@@ -367,7 +373,8 @@ def write_population(cfg: SelfPlayConfig, results: tune.ResultGrid, folder: Path
         pair = report["pair"]
         name = f"sp{pair:02d}"
         split = "train" if pair < cfg.train_pairs else "test"
-        rows.append({"partner": name, "split": split, **report})
+        hidden = cfg.hidden_utility.draw(pair_seed(cfg.seed, pair)) if cfg.hidden_utility else None
+        rows.append({"partner": name, "split": split, **report, **({"hidden_utility": json.dumps(hidden)} if hidden else {})})
         if not report.get("passed") or r.checkpoint is None:
             continue
         verify(r.checkpoint.path)
@@ -388,6 +395,7 @@ def write_population(cfg: SelfPlayConfig, results: tune.ResultGrid, folder: Path
                     checkpoint=f"partners/{member}",
                     seed=report["seed"],
                     score=snap["score"],
+                    hidden_utility=hidden,
                 )
             )
         entries.append(
@@ -404,6 +412,7 @@ def write_population(cfg: SelfPlayConfig, results: tune.ResultGrid, folder: Path
                     "kind": "trained_policy",
                     "params": {"checkpoint": f"counterparts/{name}", **params},
                 },
+                hidden_utility=hidden,
             )
         )
     population = Population(
@@ -413,7 +422,13 @@ def write_population(cfg: SelfPlayConfig, results: tune.ResultGrid, folder: Path
         partner_agent=cfg.partner_agent,
         description=f"self-play partners (seat {cfg.partner_agent}), gate {cfg.gate.score} over {cfg.gate.episodes} episodes"
         + (", with each pair's start and midpoint (Fictitious Co-Play)" if cfg.fcp else "")
-        + (joint_description(cfg) if cfg.joint else ""),
+        + (joint_description(cfg) if cfg.joint else "")
+        + (
+            f", each pair's partner seat rewarded by its own weighted {', '.join(cfg.hidden_utility.events)} "
+            "(hidden-utility self-play, HSP; weights per partner)"
+            if cfg.hidden_utility
+            else ""
+        ),
         partners=entries,
     )
     population.save(folder / POPULATION_FILE)

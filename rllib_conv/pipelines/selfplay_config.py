@@ -4,9 +4,12 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
 from pydantic import Field, NonNegativeFloat, PositiveInt, model_validator
 
 from rllib_conv.common.config_files import Strict
+from rllib_conv.common.seeds import stream_seed
+from rllib_conv.envs.registry import game
 from rllib_conv.learners.settings import LearnerSettings
 from rllib_conv.training.experiment import ExperimentConfig
 from rllib_conv.training.settings import EnvName, FolderName, ModelSettings, PPOSettings, RunSettings
@@ -19,6 +22,35 @@ class GateSettings(Strict):
     episodes: PositiveInt = 1000
     check_every: PositiveInt = 5
     check_episodes: PositiveInt = 200
+    stop: bool = Field(
+        True,
+        description="stop a pair at the first check that clears the gate; false: every pair trains its whole budget "
+        "and the gate is judged at its end (HSP's biased partners, whose own reward is not the game's)",
+    )
+
+
+class HiddenUtilitySettings(Strict):
+    """HSP's biased partners: each pair's partner seat is rewarded by a weighted count of its own events, drawn per pair."""
+
+    events: list[str] = Field(
+        min_length=1,
+        description="the events the partner seat's reward weighs instead of the game's (the game record's `events`: "
+        "Overcooked's are the MDP's, e.g. onion_pickup, potting_onion, dish_pickup, soup_pickup, soup_delivery)",
+    )
+    values: list[float] = Field(
+        [-1.0, 0.0, 1.0],
+        min_length=1,
+        description="each event's weight is drawn from these, uniformly and independently per pair, from the pair's "
+        "seed (redrawn while every weight is 0, when a value is not 0); our default, not the paper's",
+    )
+
+    def draw(self, seed: int) -> dict[str, float]:
+        """The weights of the pair seeded `seed`: one value per event, the same for the same seed."""
+        rng = np.random.default_rng(stream_seed(seed, "hidden_utility"))
+        while True:
+            weights = {event: float(rng.choice(self.values)) for event in self.events}
+            if any(weights.values()) or not any(self.values):
+                return weights
 
 
 class SelfPlayConfig(Strict):
@@ -73,6 +105,12 @@ class SelfPlayConfig(Strict):
         "[0, 1]: 0 compares single moves, 1 whole trajectories; only with trajectory_diversity; unset: "
         f"{LearnerSettings.trajectory_discount} (our choice, not the paper's)",
     )
+    hidden_utility: HiddenUtilitySettings | None = Field(
+        None,
+        description="HSP (hidden-utility self-play): the partner seat of each pair is rewarded by a weighted count of "
+        "its own events (weights drawn per pair from its seed; the manifest and selfplay_report.csv record them), "
+        "the other seat by the game's reward; the gate still scores the game. Games whose record lists events only",
+    )
     model: ModelSettings = Field(default_factory=ModelSettings)
     ppo: PPOSettings = Field(default_factory=PPOSettings)
     run: RunSettings = Field(default_factory=RunSettings)
@@ -85,7 +123,30 @@ class SelfPlayConfig(Strict):
                 raise ValueError(f"fcp and {key} cannot be combined: FCP's pairs train alone, {key}'s together")
         if self.trajectory_discount is not None and self.trajectory_diversity is None:
             raise ValueError("trajectory_discount is TrajeDi's: set trajectory_diversity too")
+        if self.hidden_utility is not None:
+            self._check_hidden_utility(self.hidden_utility)
         return self
+
+    def _check_hidden_utility(self, hidden: HiddenUtilitySettings) -> None:
+        if self.joint or self.shared_seats:
+            raise ValueError(
+                "hidden_utility (HSP) needs each pair alone with a module per seat: drop "
+                + ("population_entropy/trajectory_diversity" if self.joint else "shared_seats")
+            )
+        known = game(self.env).events
+        if not known:
+            raise ValueError(f"hidden_utility: game {self.env!r} has no events a seat's reward can weigh (its record's `events`)")
+        unknown = [event for event in hidden.events if event not in known]
+        if unknown:
+            raise ValueError(
+                f"hidden_utility.events: unknown event(s) {unknown} of game {self.env!r}; events: {', '.join(known)}"
+            )
+
+    def pair_env_config(self, seed: int) -> dict[str, Any]:
+        """The env config pair `seed` trains in: `env_config`, with HSP's drawn weights on the partner seat."""
+        if self.hidden_utility is None:
+            return self.env_config
+        return {**self.env_config, "hidden_utility": {self.partner_agent: self.hidden_utility.draw(seed)}}
 
     @property
     def discount(self) -> float:

@@ -106,6 +106,45 @@ def test_own_shaping_credits_the_player_who_earned_it() -> None:
     assert infos["player_1"]["shaped_reward"] == 0.0 and infos["player_0"]["shaped_reward"] == 3.0
 
 
+def test_a_hidden_utility_rewards_a_seat_by_its_own_weighted_events_only() -> None:
+    weights = {"onion_pickup": 2.0, "potting_onion": -1.0, "dish_pickup": 0.25, "soup_delivery": 10.0}
+    env = OvercookedEnv("cramped_room", shaping=1.0, hidden_utility={"player_0": weights, "player_1": {"onion_pickup": 7}})
+    env.reset()
+    partner_total = reported_shaping = 0.0
+    for moves in (ONION_TO_POT, AGAIN, AGAIN, FETCH_DISH):
+        for move in moves:
+            _, rewards, _, _, infos = env.step({"player_0": move, "player_1": STAY})
+            partner_total += rewards["player_1"]
+            reported_shaping += infos["player_0"]["shaped_reward"]
+    # Player_0 picked 3 onions (2 each), potted 3 (-1 each), took a dish (0.25); player_1 caused nothing.
+    total = play(env, [STAY] * env.state.objects[(2, 0)].cook_time_remaining + SERVE)[0]
+    assert partner_total == 0.0
+    assert total == 10.0  # picking the soup up is no weighted event; delivering it is
+    assert reported_shaping == 3 * 3 + 3  # the game's rewards are still reported as they were
+
+
+def test_a_hidden_utility_over_the_whole_soup_counts_each_event_once() -> None:
+    weights = {"onion_pickup": 2.0, "potting_onion": -1.0, "dish_pickup": 0.25, "soup_delivery": 10.0}
+    env = OvercookedEnv("cramped_room", hidden_utility={"player_0": weights})
+    env.reset()
+    assert one_soup(env)[0] == 3 * 2.0 - 3 * 1.0 + 0.25 + 10.0
+
+
+@pytest.mark.parametrize(
+    ("hidden", "match"),
+    [
+        ({"player_9": {"onion_pickup": 1}}, "unknown seat 'player_9'"),
+        ({"player_0": {"onion_eaten": 1}}, "unknown event 'onion_eaten'"),
+        ({"player_0": {"onion_pickup": float("nan")}}, r"\['onion_pickup'\] must be a finite number"),
+        ({"player_0": {}}, "non-empty"),
+        ([1, 2], "must map seats"),
+    ],
+)
+def test_a_bad_hidden_utility_names_the_seat_or_event(hidden: object, match: str) -> None:
+    with pytest.raises(ValueError, match=match):
+        OvercookedEnv("cramped_room", hidden_utility=hidden)
+
+
 def test_set_shaping_changes_the_factor_and_rejects_bad_values() -> None:
     env = OvercookedEnv("cramped_room", shaping=1.0)
     env.set_shaping(0.25)

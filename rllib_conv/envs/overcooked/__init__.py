@@ -1,4 +1,4 @@
-"""Overcooked-AI: its env (`env.py`) over the `overcooked` package's MDP, our grid encoding, the shaping schedule and its record.
+"""Overcooked-AI: its env (`env.py`) over the `overcooked` package's MDP, our grid encoding, the shaping schedule, hidden utilities and its record.
 
 Needs the optional extra: `pip install rllib-conv[overcooked]`. The env's names are handed on
 here, so `rllib_conv.envs.overcooked` is the game as importers know it.
@@ -22,6 +22,7 @@ from rllib_conv.envs.overcooked.env import (
     build_mdp,
     layouts,
 )
+from rllib_conv.envs.overcooked.hidden_utility import EVENTS
 from rllib_conv.envs.overcooked.shaping import shaping_factor
 
 __all__ = [
@@ -31,6 +32,7 @@ __all__ = [
     "CHANNELS",
     "CLASSIC_LAYOUTS",
     "EAST",
+    "EVENTS",
     "HORIZON",
     "INTERACT",
     "NORTH",

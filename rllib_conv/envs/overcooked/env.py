@@ -12,7 +12,9 @@ Actions are indices into `ACTIONS` (the package's `Action.ALL_ACTIONS`): 0 north
 sparse reward (20 per soup delivered, to both players) plus `shaping` times the MDP's
 shaped reward (3 per ingredient potted, 3 per useful dish pickup, 5 per soup picked up),
 by default the team's total (as Carroll et al.'s 2019 code), or each player's own with
-`shared_shaping=False`. `infos[agent]` carries `sparse_reward` and `shaped_reward` apart, so
+`shared_shaping=False`. With `hidden_utility` ({seat: {event: weight}}) a seat is rewarded by the
+weighted count of its own kitchen events instead (HSP's biased partners, `hidden_utility.py`).
+`infos[agent]` carries `sparse_reward` and `shaped_reward` apart, so
 evaluation can report the sparse score alone; the shaping schedule is in `shaping.py`.
 An episode is truncated when the state's timestep reaches `horizon` (400 in the paper).
 
@@ -38,6 +40,7 @@ from overcooked.static import LAYOUTS_DIR
 from pettingzoo import ParallelEnv
 
 from rllib_conv.envs.overcooked.encoding import GridEncoder
+from rllib_conv.envs.overcooked.hidden_utility import HiddenUtility, check_hidden_utility, event_reward
 from rllib_conv.envs.overcooked.shaping import shaping_factor
 from rllib_conv.envs.spaces import MASK_KEY, OBS_KEY, check_choice, masked_observation_space, validate_action
 
@@ -102,6 +105,7 @@ class OvercookedEnv(ParallelEnv):
         shaping: float = 1.0,
         shaping_horizon: int | None = None,
         shared_shaping: bool = True,
+        hidden_utility: HiddenUtility | None = None,
         render_mode: str | None = None,
     ) -> None:
         if not isinstance(horizon, int) or isinstance(horizon, bool) or horizon <= 0:
@@ -117,6 +121,7 @@ class OvercookedEnv(ParallelEnv):
         self.set_shaping(shaping)
         self.shaping_horizon = shaping_horizon
         self.shared_shaping = shared_shaping
+        self.hidden_utility = None if hidden_utility is None else check_hidden_utility(hidden_utility, AGENTS)
         self.render_mode = render_mode
         self.steps_taken = 0  # env steps since construction: the clock of `shaping_horizon`
         self.possible_agents = list(AGENTS)
@@ -203,6 +208,8 @@ class OvercookedEnv(ParallelEnv):
         own = info["shaped_reward_by_agent"]
         shaped = [float(sum(own))] * len(AGENTS) if self.shared_shaping else [float(r) for r in own]
         rewards = {agent: sparse + factor * shaped[i] for i, agent in enumerate(AGENTS)}
+        for seat, weights in (self.hidden_utility or {}).items():
+            rewards[seat] = event_reward(info["event_infos"], weights, AGENTS.index(seat))
         infos = {
             agent: {"sparse_reward": sparse, "shaped_reward": shaped[i], "shaping": factor} for i, agent in enumerate(AGENTS)
         }

@@ -5,6 +5,7 @@ from __future__ import annotations
 from rllib_conv.envs.defaults import AdaptDefaults, TrainingDefaults
 from rllib_conv.envs.game import GameRecord
 from rllib_conv.envs.overcooked.env import OvercookedEnv
+from rllib_conv.envs.overcooked.hidden_utility import EVENTS
 
 OVERCOOKED = GameRecord(
     name="overcooked",
@@ -24,7 +25,8 @@ OVERCOOKED = GameRecord(
     adaptation=AdaptDefaults(every=1_600, steps=16_000, episodes=50),
     max_score=None,  # no stated best: the score grows with deliveries until the horizon
     # Trained with the shaped reward (factor 1; `shaping_horizon` in an env config anneals it); scored on soups alone.
-    scoring={"shaping": 0.0, "shaping_horizon": None},
+    scoring={"shaping": 0.0, "shaping_horizon": None, "hidden_utility": None},
+    events=EVENTS,  # the MDP's per-player event counts: HSP's biased partners weigh them (`hidden_utility.py`)
     # Scripted cooks; the human proxies' populations (`overcooked-<layout>-bc`, `-hproxy`), trained into the user's cache.
     partners=("rllib_conv.partners.overcooked_cooks", "rllib_conv.partners.overcooked"),
 )
