@@ -38,6 +38,11 @@ Split = Literal["train", "test"]
 TEAM_SEPARATOR = "+"  # games of more than two seats: the partners `a` and `b` of one episode are the team `a+b`
 
 
+def teams_of(entries: list[PartnerEntry], seats: int) -> list[tuple[PartnerEntry, ...]]:
+    """Every team of `entries` for `seats` partner seats, in seat order (one seat: each entry alone)."""
+    return list(itertools.product(entries, repeat=seats))
+
+
 def team_name(partner_names: list[str] | tuple[str, ...]) -> str:
     """The name of the partners of one episode, one per partner seat in seat order (`a+b`); one partner is its own name."""
     return TEAM_SEPARATOR.join(partner_names)
@@ -96,7 +101,7 @@ class Population(BaseModel):
 
     def teams(self, split: Split | None = None) -> list[tuple[str, list[PartnerEntry]]]:
         """(name, one entry per partner seat) for every team of `split`'s partners in seat order; one seat: each partner alone."""
-        combos = itertools.product(self.entries(split), repeat=len(self.partner_agents))
+        combos = teams_of(self.entries(split), len(self.partner_agents))
         return [(team_name([e.name for e in combo]), list(combo)) for combo in combos]
 
     def entries(self, split: Split | None = None) -> list[PartnerEntry]:

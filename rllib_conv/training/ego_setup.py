@@ -8,14 +8,13 @@ team fixes it (`team`): every episode seats that team, and the ego has its one h
 
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass, field
 
 from rllib_conv import envs, partners
 from rllib_conv.common.methods import method
 from rllib_conv.modules import AGG_HEAD_ID, ego_id
 from rllib_conv.modules.partner_schedule import load_function
-from rllib_conv.partners.population import PartnerEntry, Population, team_name
+from rllib_conv.partners.population import PartnerEntry, Population, team_name, teams_of
 from rllib_conv.training.experiment import ExperimentConfig
 
 
@@ -40,7 +39,7 @@ class EgoSetup:
         """Every team of training partners, one per partner seat in seat order (one seat: each partner alone); `team` alone if set."""
         if self.team is not None:
             return [self.team]
-        return list(itertools.product([e.name for e in self.train], repeat=len(self.partner_agents)))
+        return [tuple(e.name for e in team) for team in teams_of(self.train, len(self.partner_agents))]
 
     @property
     def head_ids(self) -> list[str]:
