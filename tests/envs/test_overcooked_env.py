@@ -111,11 +111,16 @@ def test_a_hidden_utility_rewards_a_seat_by_its_own_weighted_events_only() -> No
     env = OvercookedEnv("cramped_room", shaping=1.0, hidden_utility={"player_0": weights, "player_1": {"onion_pickup": 7}})
     env.reset()
     partner_total = reported_shaping = 0.0
+    events: list[str] = []
     for moves in (ONION_TO_POT, AGAIN, AGAIN, FETCH_DISH):
         for move in moves:
             _, rewards, _, _, infos = env.step({"player_0": move, "player_1": STAY})
             partner_total += rewards["player_1"]
             reported_shaping += infos["player_0"]["shaped_reward"]
+            events += infos["player_0"]["events"]
+            assert infos["player_1"]["events"] == ()
+    # Each seat's infos name the events it caused.
+    assert events.count("onion_pickup") == events.count("potting_onion") == 3 and "dish_pickup" in events
     # Player_0 picked 3 onions (2 each), potted 3 (-1 each), took a dish (0.25); player_1 caused nothing.
     total = play(env, [STAY] * env.state.objects[(2, 0)].cook_time_remaining + SERVE)[0]
     assert partner_total == 0.0

@@ -15,7 +15,7 @@ by default the team's total (as Carroll et al.'s 2019 code), or each player's ow
 `shared_shaping=False`. With `hidden_utility` ({seat: {event: weight}}) a seat is rewarded by the
 weighted count of its own kitchen events instead (HSP's biased partners, `hidden_utility.py`).
 `infos[agent]` carries `sparse_reward` and `shaped_reward` apart, so
-evaluation can report the sparse score alone; the shaping schedule is in `shaping.py`.
+evaluation can report the sparse score alone, and `events`, the kitchen events that seat caused; the shaping schedule is in `shaping.py`.
 An episode is truncated when the state's timestep reaches `horizon` (400 in the paper).
 
 Replays: `reset(options={"state": OvercookedState})` starts from that state (its timestep
@@ -40,7 +40,7 @@ from overcooked.static import LAYOUTS_DIR
 from pettingzoo import ParallelEnv
 
 from rllib_conv.envs.overcooked.encoding import GridEncoder
-from rllib_conv.envs.overcooked.hidden_utility import HiddenUtility, check_hidden_utility, event_reward
+from rllib_conv.envs.overcooked.hidden_utility import HiddenUtility, check_hidden_utility, event_reward, events_of
 from rllib_conv.envs.overcooked.shaping import shaping_factor
 from rllib_conv.envs.spaces import MASK_KEY, OBS_KEY, check_choice, masked_observation_space, validate_action
 
@@ -211,7 +211,13 @@ class OvercookedEnv(ParallelEnv):
         for seat, weights in (self.hidden_utility or {}).items():
             rewards[seat] = event_reward(info["event_infos"], weights, AGENTS.index(seat))
         infos = {
-            agent: {"sparse_reward": sparse, "shaped_reward": shaped[i], "shaping": factor} for i, agent in enumerate(AGENTS)
+            agent: {
+                "sparse_reward": sparse,
+                "shaped_reward": shaped[i],
+                "shaping": factor,
+                "events": events_of(info["event_infos"], i),
+            }
+            for i, agent in enumerate(AGENTS)
         }
         done = self._state.timestep >= self.horizon
         observations = self._observe()

@@ -40,6 +40,11 @@ def check_hidden_utility(value: Any, agents: Sequence[str]) -> HiddenUtility:
     return out
 
 
+def events_of(event_infos: Mapping[str, Sequence[bool]], player: int) -> tuple[str, ...]:
+    """The events player index `player` caused in one step, in `EVENTS` order."""
+    return tuple(event for event in EVENTS if event_infos[event][player])
+
+
 def event_reward(event_infos: Mapping[str, Sequence[bool]], weights: Mapping[str, float], player: int) -> float:
     """The hidden reward of player index `player` for one step: the weights of the events it caused (`event_infos`)."""
     return float(sum(weight for event, weight in weights.items() if event_infos[event][player]))
