@@ -89,7 +89,9 @@ def _train(command: Callable[..., argparse.ArgumentParser]) -> None:
 
 def _partners(sub: Any, command: Callable[..., argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
-        "partners", help="partner populations: list, show, train", description="Partner populations: list, show, train."
+        "partners",
+        help="partner populations: list, show, train, from-set",
+        description="Partner populations: list, show, train, from-set.",
     )
     psub = p.add_subparsers(dest="partners_command", required=True, metavar="COMMAND", parser_class=Parser)
     command("list", "list the built-in populations", commands.partners_list, psub)
@@ -107,6 +109,16 @@ def _partners(sub: Any, command: Callable[..., argparse.ArgumentParser]) -> None
     q.add_argument("--out", default="populations", help="folder for the population (default: populations)")
     q.add_argument("--overwrite", action="store_true", help="replace an existing population of the same name")
     run_args(q), log_arg(q)
+    q = command(
+        "from-set",
+        "write an evaluation set's partners as a population to train with (a trained best response bounds the set)",
+        commands.partners_from_set,
+        psub,
+    )
+    q.add_argument("set", metavar="SET", help="an evaluation-set manifest file, or a shipped set (e.g. overcooked_heldout)")
+    q.add_argument("--name", help="the population's name (default: <set name>-partners)")
+    q.add_argument("--out", default="populations", help="folder for the population (default: populations)")
+    q.add_argument("--overwrite", action="store_true", help="replace an existing population of the same name")
 
 
 def _adapt(command: Callable[..., argparse.ArgumentParser]) -> None:

@@ -321,6 +321,20 @@ def partners_train(args: argparse.Namespace) -> None:
     print(f"wrote {target}")
 
 
+def partners_from_set(args: argparse.Namespace) -> None:
+    """`rllib-conv partners from-set SET`: an evaluation set's partners as a population whose every member trains."""
+    from rllib_conv.common.run_folders import POPULATION_FILE
+    from rllib_conv.partners.evaluation_sets import set_named
+
+    population = set_named(args.set).training_population(args.name)
+    target = writable(args.out, "--out") / population.name
+    if target.exists() and not args.overwrite:
+        raise ValueError(f"population folder {str(target)!r} already exists; choose another --name or pass --overwrite")
+    population.save(target / POPULATION_FILE)
+    print(f"population {population.name!r}: {len(population.partners)} partners to train with ({population.description})")
+    print(f"wrote {target / POPULATION_FILE}")
+
+
 def crossplay(args: argparse.Namespace) -> None:
     """`rllib-conv crossplay A B`: every member of A with every member of B; a CSV and a PNG."""
     writable(args.out, "--out")

@@ -47,6 +47,8 @@ from rllib_conv.partners.population import PartnerEntry, Population, Split, get
 Role = Literal["heldout", "validation"]
 ROLES: tuple[str, ...] = ("heldout", "validation")
 MEMBER_SEPARATOR = "/"  # a population member's name in a set: `<population>/<member>`
+# ... and in the population `training_population` makes of a set: "/" would split a module's folder on disk.
+TRAINING_SEPARATOR = "."
 
 
 class _Manifest(BaseModel):
@@ -116,6 +118,18 @@ class EvaluationSet(_Manifest):
             raise ValueError(f"{self._where()}: bounds for {stray}, which are not partners (or teams) of the set")
         return pop
 
+    def training_population(self, name: str | None = None) -> Population:
+        """The set's partners as a population to train with (every member in split `train`), named `name` (default
+        `<set>-partners`): an ego trained with it is a trained best response, the bounds a set declares. A population
+        member `<population>/<member>` is named `<population>.<member>` there (a module ID becomes a folder on disk)."""
+        pop = self.resolve()
+        entries = [
+            e.model_copy(update={"name": e.name.replace(MEMBER_SEPARATOR, TRAINING_SEPARATOR), "split": "train"})
+            for e in pop.partners
+        ]
+        about = f"the partners of evaluation set {self.name!r} ({self.role}), every one to train with"
+        return pop.model_copy(update={"name": name or f"{self.name}-partners", "description": about, "partners": entries})
+
     def _members(self, ref: SetPopulation) -> list[PartnerEntry]:
         # A folder beside the set's file wins, so a set and its populations can move together.
         local = (Path(self.source).parent if self.source else Path.cwd()) / ref.population
@@ -169,6 +183,17 @@ def shipped_set(game: str, role: str) -> EvaluationSet:
             f"no shipped {role} set for game {game!r} (games with sets: {', '.join(have)}); give a set manifest file instead"
         )
     return load_set(evaluation_set_file(name))
+
+
+def set_named(name_or_path: str) -> EvaluationSet:
+    """A manifest file, or a shipped set by its file name (`overcooked_heldout`); ValueError listing the shipped ones."""
+    if Path(name_or_path).is_file():
+        return load_set(name_or_path)
+    shipped = f"{name_or_path}.yaml"
+    if shipped in evaluation_sets():
+        return load_set(evaluation_set_file(shipped))
+    have = ", ".join(n.removesuffix(".yaml") for n in evaluation_sets())
+    raise ValueError(f"{name_or_path!r} is neither an evaluation-set manifest file nor a shipped set ({have})")
 
 
 def find_set(name_or_path: str, game: str) -> EvaluationSet:

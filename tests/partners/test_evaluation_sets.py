@@ -8,8 +8,12 @@ import pytest
 import yaml
 
 from rllib_conv import envs, partners
+from rllib_conv.cli import main
 from rllib_conv.common.resources import evaluation_set_file, evaluation_sets
-from rllib_conv.partners.evaluation_sets import ROLES, disjoint, find_set, load_set, overlap, shipped_set
+from rllib_conv.envs.overcooked.human_data import CACHE_ENV
+from rllib_conv.partners.evaluation_sets import ROLES, disjoint, find_set, load_set, overlap, set_named, shipped_set
+from rllib_conv.pipelines import human_proxies
+from rllib_conv.training.behaviour_cloning import BCSettings
 
 GAMES = ("bandit", "blocks")
 # The bounds each shipped manifest's description states, in its partners' order.
@@ -21,9 +25,10 @@ BOUNDS = {
 }
 
 
-def test_every_game_with_an_exact_bound_and_lbf_ship_both_sets_and_nothing_else_is_shipped() -> None:
-    # Level-Based Foraging has no exact bound: its sets declare trained ones (tests/pipelines/test_evaluate_k_seats.py).
-    shipped = (*GAMES, "lbf")
+def test_every_game_with_an_exact_bound_lbf_and_overcooked_ship_both_sets_and_nothing_else_is_shipped() -> None:
+    # Level-Based Foraging and Overcooked have no exact bound: their sets declare trained ones
+    # (tests/pipelines/test_evaluate_k_seats.py; Overcooked's need the human proxies, tests below).
+    shipped = (*GAMES, "lbf", "overcooked")
     assert evaluation_sets() == sorted(f"{g}_{r}.yaml" for g in shipped for r in ROLES)
     for game in shipped:
         for role in ROLES:
@@ -108,3 +113,48 @@ def test_unknown_sets_and_unreadable_files_are_refused(tmp_path) -> None:
         load_set(tmp_path / "list.yaml")
     with pytest.raises(ValueError, match="is not among the shipped evaluation sets"):
         evaluation_set_file("chess_heldout.yaml")
+
+
+def test_a_set_becomes_a_population_to_train_with_every_member_in_train(tmp_path, capsys) -> None:
+    ref = {"population": "blocks-perm", "split": "test", "members": ["perm-1032"]}
+    data = {**BASE, "partners": [{"name": "id", "kind": "blocks_permutation", "params": {"perm": [0, 1, 2, 3]}}]}
+    path = write(tmp_path, {**data, "populations": [ref]})
+    pop = set_named(str(path)).training_population()
+    assert (pop.name, [e.name for e in pop.partners]) == ("s-partners", ["id", "blocks-perm.perm-1032"])
+    assert {e.split for e in pop.partners} == {"train"} and pop.env == "blocks"
+    # The CLI writes it where a config's `population` finds it, and refuses to replace it unless asked.
+    out = tmp_path / "pops"
+    assert main(["partners", "from-set", str(path), "--out", str(out), "--name", "br"]) == 0
+    assert [e.name for e in partners.get(str(out / "br")).entries("train")] == ["id", "blocks-perm.perm-1032"]
+    assert main(["partners", "from-set", str(path), "--out", str(out), "--name", "br"]) == 2
+    assert "already exists" in capsys.readouterr().err
+    assert main(["partners", "from-set", "chess_heldout", "--out", str(tmp_path / "none")]) == 2
+    assert "nor a shipped set (bandit_heldout" in capsys.readouterr().err and not (tmp_path / "none").exists()
+
+
+def test_overcookeds_sets_say_what_to_run_without_the_human_proxies(tmp_path, monkeypatch) -> None:
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path))
+    for role in ROLES:
+        with pytest.raises(ValueError, match="run `rllib-conv human-proxies overcooked --layouts cramped_room` first"):
+            shipped_set("overcooked", role).resolve()
+
+
+@pytest.mark.slow
+def test_overcookeds_sets_hold_new_conventions_and_human_proxies_apart_and_declare_a_bound_for_each(
+    ray_session, tmp_path, monkeypatch, short_human_cache
+) -> None:
+    # The built-in proxy populations read $RLLIB_CONV_CACHE/overcooked: point it at proxies trained on the short data.
+    (tmp_path / "cache").mkdir()
+    (tmp_path / "cache" / "overcooked").symlink_to(short_human_cache)
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path / "cache"))
+    human_proxies.run(["cramped_room"], [0, 1, 2], short_human_cache, BCSettings(epochs=1), episodes=1)
+    heldout, validation = (shipped_set("overcooked", role).resolve() for role in ROLES)
+    assert disjoint(heldout, validation)
+    # No ego of the plan trains with a held-out partner: not a cook of the training split, not a BC proxy.
+    cooks, bc = partners.get("overcooked-cramped_room-cooks"), partners.get("overcooked-cramped_room-bc")
+    trained_with = cooks.model_copy(update={"partners": [*cooks.entries("train"), *bc.partners]})
+    assert disjoint(heldout, trained_with)
+    names = [e.name for e in heldout.partners]
+    assert sum(n.startswith("overcooked-cramped_room-hproxy/") for n in names) == 3 and len(names) == 6
+    for role, pop in (("heldout", heldout), ("validation", validation)):
+        assert set(shipped_set("overcooked", role).bounds) == {e.name for e in pop.partners}, role
