@@ -51,7 +51,7 @@ def keys_help(schema: type[BaseModel], keys: Sequence[str], title: str) -> str:
 
 
 # The self-play keys that make a population one of the field's partner generators (`partners train --help`).
-GENERATOR_KEYS = ("fcp", "population_entropy", "trajectory_diversity", "trajectory_discount")
+GENERATOR_KEYS = ("fcp", "population_entropy", "trajectory_diversity", "trajectory_discount", "hidden_utility")
 
 
 ADAPT_SET_KEYS = {k: described(AdaptConfig, k) for k in AdaptConfig.model_fields if k not in ADAPT_OPTIONS and k not in PER_TRIAL}
