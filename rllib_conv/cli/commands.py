@@ -234,7 +234,16 @@ def partners_show(args: argparse.Namespace) -> None:
     print(f"{pop.name}: {pop.env} {pop.env_config}, partners in seat {', '.join(pop.partner_agents)}")
     if pop.description:
         print(pop.description)
-    rows = [{"partner": e.name, "split": e.split, "kind": e.kind, "params": json.dumps(e.params)} for e in pop.partners]
+    rows = [
+        {
+            "partner": e.name,
+            "split": e.split,
+            "kind": e.kind,
+            "params": json.dumps(e.params),
+            **({"hidden_utility": json.dumps(e.hidden_utility)} if e.hidden_utility else {}),  # HSP's weights
+        }
+        for e in pop.partners
+    ]
     with pd.option_context("display.max_colwidth", 100, "display.width", 200):
         print(pd.DataFrame(rows).to_string(index=False))
 

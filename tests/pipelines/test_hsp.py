@@ -8,6 +8,7 @@ import pandas as pd
 import pytest
 
 from rllib_conv import partners
+from rllib_conv.cli import main
 from rllib_conv.common import config_files
 from rllib_conv.common.seeds import pair_seed
 from rllib_conv.envs.overcooked import EVENTS, STAY, OvercookedEnv
@@ -73,7 +74,7 @@ def test_the_shipped_config_weighs_known_events() -> None:
 
 
 @pytest.mark.slow
-def test_an_hsp_population_records_each_partners_weights_and_loads(ray_session, tmp_path) -> None:
+def test_an_hsp_population_records_each_partners_weights_and_loads(ray_session, tmp_path, capsys) -> None:
     raw = hsp_raw(train_pairs=2, test_pairs=0, run={"timesteps": 1600})
     raw["gate"] = {"score": 0.0, "episodes": 2, "check_every": 1, "check_episodes": 1}
     population, report = train_population(
@@ -90,6 +91,9 @@ def test_an_hsp_population_records_each_partners_weights_and_loads(ray_session, 
     reloaded = partners.get(str(tmp_path / "pops" / cfg.name))
     assert reloaded.partners[1].hidden_utility == expected["sp01"]
     assert reloaded.env_config == cfg.env_config  # partners are played, and scored, in the game itself
+    capsys.readouterr()
+    assert main(["partners", "show", str(tmp_path / "pops" / cfg.name)]) == 0
+    assert json.dumps(expected["sp01"]) in capsys.readouterr().out
 
 
 def onion_pickups(partner: Partner, episodes: int = 3) -> float:
