@@ -42,7 +42,7 @@ from pydantic import BaseModel, ConfigDict, Field, PositiveFloat, ValidationErro
 
 from rllib_conv.common.config_files import describe
 from rllib_conv.common.resources import evaluation_set_file, evaluation_sets
-from rllib_conv.partners.population import PartnerEntry, Population, Split, get
+from rllib_conv.partners.population import PartnerEntry, Population, Split, get, is_builtin, names
 
 Role = Literal["heldout", "validation"]
 ROLES: tuple[str, ...] = ("heldout", "validation")
@@ -130,10 +130,21 @@ class EvaluationSet(_Manifest):
         about = f"the partners of evaluation set {self.name!r} ({self.role}), every one to train with"
         return pop.model_copy(update={"name": name or f"{self.name}-partners", "description": about, "partners": entries})
 
-    def _members(self, ref: SetPopulation) -> list[PartnerEntry]:
+    def waiting_for(self) -> list[str]:
+        """The built-in populations the set takes members of that cannot load yet (human proxies not trained)."""
+        return [
+            ref.population
+            for ref in self.populations
+            if (t := self._target(ref)) == ref.population and is_builtin(t) and t not in names()
+        ]
+
+    def _target(self, ref: SetPopulation) -> str:
         # A folder beside the set's file wins, so a set and its populations can move together.
         local = (Path(self.source).parent if self.source else Path.cwd()) / ref.population
-        target = str(local) if local.exists() else ref.population
+        return str(local) if local.exists() else ref.population
+
+    def _members(self, ref: SetPopulation) -> list[PartnerEntry]:
+        target = self._target(ref)
         try:
             pop = get(target)
         except ValueError as exc:

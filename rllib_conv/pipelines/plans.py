@@ -311,6 +311,8 @@ def plan_for(
         for role in roles:
             try:
                 eval_set = shipped_set(game, role)
+                if eval_set.waiting_for():  # e.g. human proxies not trained yet: the stage checks the fit when it runs
+                    continue
                 check_fit(eval_set, eval_set.resolve(), pop.env, pop.env_config, pop.partner_agent)
             except ValueError as exc:
                 raise ValueError(f"plan file {str(source)!r}: evaluate.{population}: {role}: {exc}") from None

@@ -13,6 +13,7 @@ from rllib_conv.common.resources import evaluation_set_file, evaluation_sets
 from rllib_conv.envs.overcooked.human_data import CACHE_ENV
 from rllib_conv.partners.evaluation_sets import ROLES, disjoint, find_set, load_set, overlap, set_named, shipped_set
 from rllib_conv.pipelines import human_proxies
+from rllib_conv.pipelines.plans import plan_for
 from rllib_conv.training.behaviour_cloning import BCSettings
 
 GAMES = ("bandit", "blocks")
@@ -137,6 +138,11 @@ def test_overcookeds_sets_say_what_to_run_without_the_human_proxies(tmp_path, mo
     for role in ROLES:
         with pytest.raises(ValueError, match="run `rllib-conv human-proxies overcooked --layouts cramped_room` first"):
             shipped_set("overcooked", role).resolve()
+    assert shipped_set("overcooked", "heldout").waiting_for() == ["overcooked-cramped_room-hproxy"]
+    assert shipped_set("overcooked", "validation").waiting_for() == ["overcooked-cramped_room-bc"]
+    assert shipped_set("bandit", "heldout").waiting_for() == []
+    # A plan that evaluates on them still loads: the stage checks the fit when it runs, after the proxies are trained.
+    assert plan_for("overcooked").evaluate == {"overcooked-cramped_room-cooks": ["heldout", "validation"]}
 
 
 @pytest.mark.slow
@@ -148,6 +154,7 @@ def test_overcookeds_sets_hold_new_conventions_and_human_proxies_apart_and_decla
     (tmp_path / "cache" / "overcooked").symlink_to(short_human_cache)
     monkeypatch.setenv(CACHE_ENV, str(tmp_path / "cache"))
     human_proxies.run(["cramped_room"], [0, 1, 2], short_human_cache, BCSettings(epochs=1), episodes=1)
+    assert [shipped_set("overcooked", role).waiting_for() for role in ROLES] == [[], []]
     heldout, validation = (shipped_set("overcooked", role).resolve() for role in ROLES)
     assert disjoint(heldout, validation)
     # No ego of the plan trains with a held-out partner: not a cook of the training split, not a BC proxy.
