@@ -153,7 +153,7 @@ def test_overcookeds_sets_hold_new_conventions_and_human_proxies_apart_and_decla
     (tmp_path / "cache").mkdir()
     (tmp_path / "cache" / "overcooked").symlink_to(short_human_cache)
     monkeypatch.setenv(CACHE_ENV, str(tmp_path / "cache"))
-    human_proxies.run(["cramped_room"], [0, 1, 2], short_human_cache, BCSettings(epochs=1), episodes=1)
+    human_proxies.run(["cramped_room"], [0, 1, 2], short_human_cache, BCSettings(epochs=1), episodes=2)
     assert [shipped_set("overcooked", role).waiting_for() for role in ROLES] == [[], []]
     heldout, validation = (shipped_set("overcooked", role).resolve() for role in ROLES)
     assert disjoint(heldout, validation)
