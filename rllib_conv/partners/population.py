@@ -27,6 +27,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from rllib_conv.common.atomic_files import write_text_atomically
 from rllib_conv.common.config_files import GRID_KEY, describe, is_grid
+from rllib_conv.common.file_versions import FileVersion, read_once
 from rllib_conv.common.run_folders import POPULATION_FILE
 from rllib_conv.envs.registry import factory as env_factory
 from rllib_conv.partners.base import Partner
@@ -143,10 +144,20 @@ class Population(BaseModel):
             path = path / POPULATION_FILE
         if not _exists(path) or not path.is_file():
             raise ValueError(f"population manifest {str(path)!r} does not exist")
+        # A stage asks for the same manifest once per curve (thousands in a 10-seed plan), and reading one builds every
+        # partner (a trained one loads its network): read and check each version of a file once per process.
+        return read_once(path, cls._read, _LOADED).model_copy(deep=True)
+
+    @classmethod
+    def _read(cls, path: Path) -> "Population":
+        text = path.read_text()
         try:
-            data = yaml.safe_load(path.read_text())  # YAML is a superset of JSON
-        except yaml.YAMLError as exc:
-            raise ValueError(f"population manifest {str(path)!r} is not valid JSON/YAML: {exc}") from None
+            data = json.loads(text)  # what `save` writes; ~40x faster than the YAML parser
+        except json.JSONDecodeError:
+            try:
+                data = yaml.safe_load(text)  # YAML is a superset of JSON
+            except yaml.YAMLError as exc:
+                raise ValueError(f"population manifest {str(path)!r} is not valid JSON/YAML: {exc}") from None
         try:
             pop = cls.model_validate(data)
         except ValidationError as exc:
@@ -157,6 +168,7 @@ class Population(BaseModel):
         return pop
 
 
+_LOADED: dict[FileVersion, Population] = {}  # each manifest version, as read
 _BUILTINS: dict[str, Callable[[], Population]] = {}
 # Built-ins that exist only after a step on the user's machine (trained human proxies): listed once `ready()` says so.
 _READY: dict[str, Callable[[], bool]] = {}
