@@ -129,3 +129,24 @@ def test_a_tiny_trained_ego_is_evaluated_end_to_end(ray_session, tmp_path, monke
     # Another module plays when asked: the task module alone.
     assert main(["evaluate", "runs/tiny", "--module", "task", "--resamples", "500"]) == 0
     assert set(pd.read_csv(tmp_path / "evaluation" / "tiny-heldout-module=task" / "scores.csv")["module"]) == {"task"}
+
+
+COMMITTED = sorted(Path("benchmarks/results").glob("evaluate_*/*/summary.json"))
+
+
+@pytest.mark.parametrize("path", COMMITTED, ids=lambda p: f"{p.parent.parent.name}/{p.parent.name}")
+def test_a_committed_evaluation_rebuilds_from_its_scores(path: Path) -> None:
+    # The committed scores.csv (one row per ego and partner) is the data; summary.json's numbers must follow from it.
+    record = json.loads(path.read_text())
+    table = pd.read_csv(path.parent / "scores.csv")
+    np.testing.assert_allclose(table["normalised"], table["return"] / table["bound"], rtol=1e-12)
+    assert table.drop_duplicates("partner").set_index("partner")["bound"].to_dict() == record["bounds"]
+    cfg = record["config"]
+    rebuilt = summarise(table, cfg["resamples"], cfg["confidence"], cfg["seed"])
+    committed = pd.DataFrame(record["aggregates"])[SUMMARY_COLUMNS]
+    pd.testing.assert_frame_equal(rebuilt.reset_index(drop=True), committed, check_exact=False, rtol=1e-12)
+    assert (path.parent.parent / "COMMAND").is_file()
+
+
+def test_the_committed_evaluations_are_found() -> None:
+    assert {p.parent.name for p in COMMITTED} >= {"heldout", "validation"}
