@@ -6,11 +6,14 @@ import os
 import time
 
 import pytest
+import yaml
 
 from rllib_conv import partners
-from rllib_conv.common import sealed
+from rllib_conv.common import run_folders, sealed
 from rllib_conv.common.file_versions import SETTLED_NS, read_once
+from rllib_conv.common.run_folders import CONFIG_FILE, read_trial_config
 from rllib_conv.partners.population import Population
+from rllib_conv.training.experiment import trial_config
 
 
 def age(path, seconds: float = 60.0) -> None:
@@ -75,3 +78,15 @@ def test_a_population_read_twice_is_two_independent_copies(tmp_path) -> None:
     name = first.partners[0].name
     first.partners[0].name = "changed"  # a caller's edit must not reach the next reader
     assert Population.load(tmp_path).partners[0].name == name != "changed"
+
+
+def test_a_trial_config_is_parsed_once_per_version_and_handed_out_as_copies(tmp_path, monkeypatch) -> None:
+    (tmp_path / CONFIG_FILE).write_text(yaml.safe_dump({"population": "bandit-s2-hand", "lam": 0.5, "seed": 3}))
+    age(tmp_path / CONFIG_FILE)
+    parsed = []
+    read_yaml = run_folders.read_yaml
+    monkeypatch.setattr(run_folders, "read_yaml", lambda *a: parsed.append(a) or read_yaml(*a))
+    first = read_trial_config(tmp_path)
+    first["lam"] = 9.0  # a caller's edit must not reach the next reader
+    assert trial_config(tmp_path).lam == 0.5 and read_trial_config(tmp_path)["seed"] == 3
+    assert len(parsed) == 1  # the raw dict and the checked config share one parse

@@ -28,14 +28,15 @@ through this module, so the layout is written down once:
 
 from __future__ import annotations
 
+import copy
 import hashlib
 import json
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from rllib_conv.common.atomic_files import write_text_atomically
+from rllib_conv.common.config_files import read_yaml
+from rllib_conv.common.file_versions import FileVersion, read_once
 from rllib_conv.common.sealed import verify_file
 
 # --- one Tune experiment and its trials -------------------------------------------------
@@ -152,9 +153,20 @@ def trial_folders(path: str | Path, missing_ok: bool = False) -> list[Path]:
 
 
 def read_trial_config(trial: str | Path) -> dict[str, Any]:
-    """A trial's resolved config (its `config.yaml`) as a plain dict; ValueError naming it when it differs from what was saved."""
-    verify_file(Path(trial) / CONFIG_FILE, "trial config")
-    return yaml.safe_load((Path(trial) / CONFIG_FILE).read_text()) or {}
+    """A trial's resolved config (its `config.yaml`) as a plain dict (a copy of its own); ValueError naming the file when it
+    differs from what was saved or is not YAML.
+
+    A stage reads each trained ego's config once per curve it adapts: the file is parsed once per version of it.
+    """
+    return copy.deepcopy(read_once(Path(trial) / CONFIG_FILE, _read_trial_config, _TRIAL_CONFIGS))
+
+
+_TRIAL_CONFIGS: dict[FileVersion, dict[str, Any]] = {}
+
+
+def _read_trial_config(path: Path) -> dict[str, Any]:
+    verify_file(path, "trial config")
+    return read_yaml(path, "trial config") or {}
 
 
 def checkpoints(trial: str | Path) -> list[Path]:

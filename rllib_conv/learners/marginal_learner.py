@@ -3,12 +3,12 @@
 The paper's loss, per ego: PPO's loss on every head's own rows (`ppo_loss`), plus
 `lam * D` (`regulariser.marginal_distance`): D over the states of all the ego's heads' rows
 (PPO's bootstrap padding rows are dropped by `DropBootstrapRows` before minibatching), over
-all its heads i (one per training partner), with no gradient stopped. `lam = 0` leaves
+all its heads i (one per training partner), with no gradient stopped. `lam = 0` (for every replica) leaves
 PPO's loss untouched: each head then runs on its own rows only, and D is still logged,
 computed without gradients on each update's last minibatch.
 
 The ego trains packed: a `StackedEgoMultiRLModule` of K independent replicas (seeds) whose
-weights live in one `EgoStack`; the loss adds `lam * sum_r D_r`, and each D_r reaches only
+weights live in one `EgoStack`; the loss adds `sum_r lam_r * D_r`, and each D_r reaches only
 replica r's weights, so the replicas train as K separate learners would. How the update
 runs (one fused minibatch loop for every replica and head) is `FusedUpdateLearner`'s
 business (`rllib_conv.learners.packed`); this file is what the paper trains.
@@ -16,14 +16,15 @@ business (`rllib_conv.learners.packed`); this file is what the paper trains.
 Settings come from `config.learners(learner_config_dict=...)`, the fields of
 `LearnerSettings` (whose defaults are the only ones):
 
-- `lam` (float, default 0): the regulariser weight.
+- `lam` (float, default 0): the regulariser weight; a list gives each replica its own (replicas of several
+  experiments, e.g. a lambda sweep, packed in one algorithm).
 - `freeze` (list): the groups `"task"` and `"heads"`, whose weights must not change:
   their parameters get `requires_grad=False` and no optimizer.
 - `adam_eps` (float, default 1e-5, the paper's code): Adam's epsilon.
 - `z_lr_scale` (float, default 1): the task module's z layers (its policy tower) learn at
   `lr * z_lr_scale` through an optimizer of their own; 0 freezes them.
 - `shuffle_seeds` (module ID -> seed): each module's own minibatch-shuffling generator.
-- `head_l2` (float, default 0; not in the paper): weight of the head penalty H
+- `head_l2` (float or a list per replica, default 0; not in the paper): weight of the head penalty H
   (`head_penalty.head_size`) on every ego head's own output. H is always logged.
 - `population_entropy` (float alpha, default 0; not in the paper) and `populations` (name ->
   module IDs): MEP's bonus for plain modules (self-play seats of several pairs trained
@@ -47,6 +48,7 @@ Other modules (self-play seats, plain RLlib modules) get RLlib's usual optimizer
 
 from __future__ import annotations
 
+from functools import cached_property
 from typing import Any
 
 import torch
@@ -59,6 +61,7 @@ from rllib_conv.learners.packed.fused_update import HEADS_OPTIMIZER, TASK_OPTIMI
 from rllib_conv.learners.population_entropy import population_entropy
 from rllib_conv.learners.ppo_loss import categorical_logp_entropy
 from rllib_conv.learners.regulariser import marginal_distance
+from rllib_conv.learners.settings import replica_weights
 from rllib_conv.learners.trajectory_diversity import trajectory_diversity
 from rllib_conv.modules.packed.stacked_multi import STACK_ID, HeadView, StackedOutput
 
@@ -78,39 +81,49 @@ def _cat_obs(parts: list) -> object:
 class MarginalPPOLearner(FusedUpdateLearner):
     """PPO learner for `StackedEgoMultiRLModule`s: the regulariser, the head penalty, real freezing, Adam eps."""
 
-    @property
-    def lam(self) -> float:
-        """The regulariser weight."""
-        return float(self.settings.lam)
+    @cached_property
+    def lam(self) -> torch.Tensor:
+        """The regulariser weight of every replica ([K]; replicas of a lambda sweep packed together differ)."""
+        return self._replica_weights(self.settings.lam)
 
-    @property
-    def head_l2(self) -> float:
-        """The head penalty's weight."""
-        return float(self.settings.head_l2)
+    @cached_property
+    def head_l2(self) -> torch.Tensor:
+        """The head penalty's weight of every replica ([K])."""
+        return self._replica_weights(self.settings.head_l2)
+
+    def _replica_weights(self, weight: float | list[float]) -> torch.Tensor:
+        replicas = self.module[STACK_ID].replicas if STACK_ID in self.module else 1
+        return torch.tensor(replica_weights(weight, replicas), dtype=torch.float32, device=self._device)
+
+    @cached_property
+    def _weighted(self) -> tuple[bool, bool]:
+        """Whether any replica weights D, and H."""
+        return bool((self.lam > 0).any()), bool((self.head_l2 > 0).any())
 
     # --- the regulariser and the head penalty -----------------------------------------------------------
 
     def stack_terms(self, stacked: StackedOutput) -> dict[str, torch.Tensor]:
         """Per replica: D_r and H_r ([K] each) of one minibatch, each with a gradient only when weighted."""
         rows = stacked.row_weights
-        with torch.set_grad_enabled(self.lam > 0 and torch.is_grad_enabled()):
+        lam, head_l2 = self._weighted
+        with torch.set_grad_enabled(lam and torch.is_grad_enabled()):
             reg = marginal_distance(stacked.task_logits, stacked.all_logits, rows)
-        with torch.set_grad_enabled(self.head_l2 > 0 and torch.is_grad_enabled()):
+        with torch.set_grad_enabled(head_l2 and torch.is_grad_enabled()):
             size = head_size(stacked.head_out, rows)
         return {MARGINAL_REG_KEY: reg, HEAD_L2_KEY: size}
 
     @property
     def loss_reads_all_heads(self) -> bool:
-        """D and H read every head on every row: needed in the loss only when weighted."""
-        return self.lam > 0 or self.head_l2 > 0
+        """D and H read every head on every row: needed in the loss only when some replica weights them."""
+        return any(self._weighted)
 
     def stack_loss(self, terms: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
-        """lam * sum_r D_r and head_l2 * sum_r H_r, those with a weight (a replica's terms reach only its own weights)."""
+        """sum_r lam_r * D_r and sum_r head_l2_r * H_r, those some replica weights (a replica's terms reach only its own
+        weights; a replica of weight 0 gets a gradient of 0 from them)."""
         loss = {}
-        if self.lam > 0:
-            loss[MARGINAL_REG_KEY] = self.lam * terms[MARGINAL_REG_KEY].sum()
-        if self.head_l2 > 0:
-            loss[HEAD_L2_KEY] = self.head_l2 * terms[HEAD_L2_KEY].sum()
+        for key, weights, on in zip((MARGINAL_REG_KEY, HEAD_L2_KEY), (self.lam, self.head_l2), self._weighted):
+            if on:
+                loss[key] = (weights * terms[key]).sum()
         return loss
 
     # --- MEP's population entropy and TrajeDi's trajectory diversity (plain modules) -----------------------

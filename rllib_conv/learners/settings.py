@@ -14,11 +14,13 @@ from typing import Any
 class LearnerSettings:
     """What `MarginalPPOLearner` reads from `learner_config_dict` (see the module docstring)."""
 
-    lam: float = 0.0
+    # The regulariser's and the head penalty's weights: one for every replica, or one per replica of a packed ego
+    # (replicas of different experiments, e.g. a lambda sweep, train in one algorithm).
+    lam: float | tuple[float, ...] = 0.0
     freeze: tuple[str, ...] = ()
     adam_eps: float = 1e-5
     z_lr_scale: float = 1.0
-    head_l2: float = 0.0
+    head_l2: float | tuple[float, ...] = 0.0
     # Module ID -> seed of the generator shuffling its minibatches (packed replicas shuffle
     # as each would alone); modules without one shuffle with NumPy's global RNG, as RLlib does.
     shuffle_seeds: dict[str, int] = field(default_factory=dict)
@@ -36,6 +38,22 @@ class LearnerSettings:
         return {
             **asdict(self),
             "freeze": list(self.freeze),
+            "lam": _plain(self.lam),
+            "head_l2": _plain(self.head_l2),
             "shuffle_seeds": dict(self.shuffle_seeds),
             "populations": {name: list(ids) for name, ids in self.populations.items()},
         }
+
+
+def _plain(weight: float | tuple[float, ...]) -> float | list[float]:
+    """A weight as a config dict holds it (a list for per-replica weights)."""
+    return list(weight) if isinstance(weight, tuple) else weight
+
+
+def replica_weights(weight: float | list[float] | tuple[float, ...], replicas: int) -> tuple[float, ...]:
+    """`weight` as one float per replica (a single weight is every replica's); ValueError if a list has another length."""
+    if isinstance(weight, (list, tuple)):
+        if len(weight) != replicas:
+            raise ValueError(f"{len(weight)} per-replica weights for {replicas} replicas")
+        return tuple(float(w) for w in weight)
+    return (float(weight),) * replicas

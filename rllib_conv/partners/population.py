@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any, Callable, Literal
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_serializer
 
 from rllib_conv.common.atomic_files import write_text_atomically
 from rllib_conv.common.config_files import GRID_KEY, describe, is_grid
@@ -64,6 +64,14 @@ class PartnerEntry(BaseModel):
     counterpart: dict[str, Any] | None = None
     # HSP (`hidden_utility` in a self-play config): the event weights its seat was rewarded by, {event: weight}.
     hidden_utility: dict[str, float] | None = None
+
+    @model_serializer(mode="wrap")
+    def _dump(self, handler: Any) -> dict[str, Any]:
+        # Only HSP's partners have event weights: other manifests stay as they were before the field existed.
+        data = handler(self)
+        if data.get("hidden_utility") is None:
+            data.pop("hidden_utility", None)
+        return data
 
     def build(self) -> Partner:
         """Return the `Partner` this entry describes."""

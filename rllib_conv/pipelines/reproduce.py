@@ -89,7 +89,7 @@ from rllib_conv.pipelines.evaluate_config import check as check_evaluation
 from rllib_conv.pipelines.heldout import HeldoutAgent, members_agent, play_heldout, selfplay_agent, trained_agent
 from rllib_conv.pipelines.marginal_report import marginal_report
 from rllib_conv.pipelines.plans import GAMES, AdaptVariant, HeldoutAgentSpec, Plan, TrainedVariant, narrow, plan_for
-from rllib_conv.pipelines.selfplay import train_population
+from rllib_conv.pipelines.selfplay import train_populations
 from rllib_conv.pipelines.selfplay_config import SelfPlayConfig
 from rllib_conv.pipelines.train import train_stage
 from rllib_conv.pipelines.zeroshot import run_zeroshots
@@ -150,21 +150,21 @@ class Reproduction:
         return experiment.get("run", {}).get("timesteps") or envs.game(self.plan.game).training_defaults().timesteps
 
     def stage_selfplay(self) -> None:
-        for overrides in self.plan.selfplay:
-            target = self.root / POPULATIONS_DIR / overrides["name"]
-            if (target / POPULATION_FILE).is_file():
-                continue
-            base = config_files.load(config_file(f"selfplay_{self.plan.game}.yaml"), schema=SelfPlayConfig)
-            config = config_files.checked(_merge(base, overrides), SelfPlayConfig, ARGUMENTS)
-            label = f"[{self.plan.game}] self-play {overrides['name']}"
-            _, report = train_population(
-                config,
-                out=self.root / POPULATIONS_DIR,
-                storage=self.runs,
-                address=self.address,
-                label=label,
-                loggers=self.loggers,
-            )
+        """Train the plan's self-play populations not written yet, every pair of them in one Tune run."""
+        todo = [o for o in self.plan.selfplay if not (self.root / POPULATIONS_DIR / o["name"] / POPULATION_FILE).is_file()]
+        if not todo:
+            return
+        base = config_files.load(config_file(f"selfplay_{self.plan.game}.yaml"), schema=SelfPlayConfig)
+        configs = [config_files.checked(_merge(base, overrides), SelfPlayConfig, ARGUMENTS) for overrides in todo]
+        written = train_populations(
+            configs,
+            out=self.root / POPULATIONS_DIR,
+            storage=self.runs,
+            address=self.address,
+            label=f"[{self.plan.game}] self-play",
+            loggers=self.loggers,
+        )
+        for overrides, (_, report) in zip(todo, written):
             self.log(f"self-play {overrides['name']}: {int(report['passed'].sum())}/{len(report)} pairs passed the gate")
 
     def trained(self) -> list[tuple[str, TrainedVariant]]:

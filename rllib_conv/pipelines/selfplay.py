@@ -80,8 +80,9 @@ from rllib_conv.partners.trained import PolicyPartner
 from rllib_conv.pipelines.selfplay_config import SelfPlayConfig
 from rllib_conv.training.algorithm import BASE_SEED, base_ppo_config
 from rllib_conv.training.callbacks import STEPS_DONE, STEPS_TOTAL
-from rllib_conv.training.stage import Stage, fit_stage
+from rllib_conv.training.stage import Stage, configs_spec, fit_stage
 from rllib_conv.training.trainable import AlgorithmTrainable
+from rllib_conv.training.tuning import job_param_space, trial_job
 from rllib_conv.training.weights import learner_module
 
 SEAT_PREFIX = "seat@"
@@ -350,15 +351,19 @@ class SelfPlayTrainable(AlgorithmTrainable):
 
 
 def _pair_reports(cfg: SelfPlayConfig, results: tune.ResultGrid) -> list[tuple[Any, dict[str, Any]]]:
-    """(trial result, pair report) of every pair, in pair order; a trial that wrote no report fails each of its pairs."""
+    """(trial result, pair report) of every pair of `cfg` (a stage may train several configs' pairs), in pair order; a
+    trial that wrote no report fails each of its pairs."""
     out = []
     for r in results:
+        job = trial_job(r.config)
+        if job.get("name", cfg.name) != cfg.name:
+            continue
         report_path = Path(r.path) / SELFPLAY_TRIAL_FILE
         if report_path.is_file():
             written = json.loads(report_path.read_text())
             reports = written if isinstance(written, list) else [written]
         else:
-            pairs = split_pairs(cfg, r.config["pair"])
+            pairs = split_pairs(cfg, job["pair"])
             reports = [{"pair": p, "passed": False, "error": str(r.error)} for p in pairs]
         out.extend((r, report) for report in reports)
     return sorted(out, key=lambda item: item[1]["pair"])
@@ -454,23 +459,53 @@ def train_population(
     The population is assembled in a temporary folder and moved into place only when
     complete, so a crash never leaves a half-written population (or replaces an old one).
     """
-    cfg, raw = config.first, config.raw
-    game_agents(cfg)
-    target = Path(out).resolve() / cfg.name
-    if target.exists() and not overwrite:
-        raise ValueError(f"population folder {str(target)!r} already exists; choose another name or pass --overwrite")
-    checkpoint = tune.CheckpointConfig(num_to_keep=1, checkpoint_frequency=cfg.run.checkpoint_every, checkpoint_at_end=True)
+    return train_populations([config], out, storage, address, overwrite, label, loggers)[0]
+
+
+def train_populations(
+    configs: list[Checked[SelfPlayConfig]],
+    out: str | Path = "populations",
+    storage: str | Path = "runs",
+    address: str | None = None,
+    overwrite: bool = False,
+    label: str | None = None,
+    loggers: Sequence[str] = (),
+) -> list[tuple[Population, pd.DataFrame]]:
+    """`train_population` for several configs (names differ) as ONE Tune run: every pair of every config is a trial, so
+    no core idles at one population's tail while the next waits; each population is written when all are trained."""
+    cfgs = [config.first for config in configs]
+    names = [cfg.name for cfg in cfgs]
+    if len(set(names)) < len(names):
+        raise ValueError(f"self-play configs must have different names; got {names}")
+    targets = []
+    for cfg in cfgs:
+        game_agents(cfg)
+        target = Path(out).resolve() / cfg.name
+        if target.exists() and not overwrite:
+            raise ValueError(f"population folder {str(target)!r} already exists; choose another name or pass --overwrite")
+        targets.append(target)
+    first = cfgs[0]
+    checkpoint = tune.CheckpointConfig(num_to_keep=1, checkpoint_frequency=first.run.checkpoint_every, checkpoint_at_end=True)
     stage = Stage(SELFPLAY, SelfPlayTrainable, checkpoint, stops_early="a pair stops when it passes the gate")
-    # One pair (or, MEP, one split's pairs) a trial: the units need no packing, and the trials' configs are the config with its pair.
-    space = {**raw, "pair": tune.grid_search(trial_pairs(cfg))}
-    results = fit_stage(stage, raw, space, [cfg.name], storage, address, label, loggers)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=f".{cfg.name}.", dir=target.parent))
-    try:
-        population, report = write_population(cfg, results, staging)
-        if target.exists():
-            shutil.rmtree(target)
-        staging.rename(target)
-    finally:
-        shutil.rmtree(staging, ignore_errors=True)
-    return Population.load(target / POPULATION_FILE), report
+    # One pair (or, MEP, one split's pairs) a trial: the units need no packing, and the trials' configs are the configs
+    # with their pairs. One config keeps its own grid (and its run's name and spec); several are jobs.
+    if len(configs) == 1:
+        spec: Any = configs[0].raw
+        space = {**configs[0].raw, "pair": tune.grid_search(trial_pairs(first))}
+    else:
+        spec = configs_spec([c.raw for c in configs], names)
+        space = job_param_space([{**c.raw, "pair": pair} for c, cfg in zip(configs, cfgs) for pair in trial_pairs(cfg)])
+    results = fit_stage(stage, spec, space, names, storage, address, label, loggers)
+    written = []
+    for cfg, target in zip(cfgs, targets):
+        target.parent.mkdir(parents=True, exist_ok=True)
+        staging = Path(tempfile.mkdtemp(prefix=f".{cfg.name}.", dir=target.parent))
+        try:
+            population, report = write_population(cfg, results, staging)
+            if target.exists():
+                shutil.rmtree(target)
+            staging.rename(target)
+        finally:
+            shutil.rmtree(staging, ignore_errors=True)
+        written.append((Population.load(target / POPULATION_FILE), report))
+    return written

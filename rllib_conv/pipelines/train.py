@@ -5,6 +5,12 @@ grid point train together in it as replicas (`rllib_conv.training.algorithm.Repl
 one game copy and one set of modules per seed, each seeded from its seed alone, so every
 seed trains as it would alone while the env runner and learner costs are paid once.
 
+A `reproduce` or `train` stage packs further: every experiment whose egos can be replicas of one
+algorithm (the same game, partner count, method and sizes; `algorithm.packing_key`, which lets
+the regulariser's and the head penalty's weights differ per replica) trains in one trial, e.g.
+a lambda sweep over several populations of one game; each replica is still exported to its own
+experiment's folder and trains as it would alone (`experiment_packs`).
+
 The Tune trial folder holds Tune's `params.json`/`progress.csv` (per-iteration metrics:
 the replicas' mean, and each replica's under `seed=<s>/...`) and its checkpoints (the whole
 algorithm, for resuming). When training ends each replica is written as an ordinary
@@ -17,6 +23,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections import defaultdict
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -32,7 +39,7 @@ from rllib_conv.envs.oracles import has_oracle
 from rllib_conv.learners.marginal_learner import HEAD_L2_KEY, MARGINAL_REG_KEY
 from rllib_conv.modules.multi import AGG_HEAD_ID, TASK_ID, partner_id, replica_id
 from rllib_conv.partners.population import team_name, with_absolute_paths
-from rllib_conv.training.algorithm import Replica, build_algorithm
+from rllib_conv.training.algorithm import Replica, build_algorithm, packing_key
 from rllib_conv.training.callbacks import STEPS_DONE, STEPS_TOTAL
 from rllib_conv.training.ego_setup import EgoSetup, resolve
 from rllib_conv.training.evaluate import ego_head_partner, seated_return
@@ -48,6 +55,11 @@ from rllib_conv.training.weights import learner_module
 
 REPLICA_SEEDS = "replica_seeds"  # a trial config's seeds, trained together as replicas
 EXPORT_KEY = "export_to"  # a stage job's folder for its replicas (default: its Tune trial folder)
+MEMBERS = "members"  # a stage trial's experiments: [{"config": one grid point's config, "export_to": its egos' folder}]
+REPLICAS = "replicas"  # a stage trial's replicas: [[member index, seed], ...]
+# Replicas in one trial at most: more share the per-step costs further, but every replica's rollouts and
+# modules live in the one process.
+MAX_REPLICAS = 32
 HISTORY_FILE = "replica_history.json"  # in a trial checkpoint: every replica's progress rows so far
 
 
@@ -91,31 +103,56 @@ def evaluate(module: Any, setup: EgoSetup, episodes: int, seed: int = 0) -> dict
     return out
 
 
+def trial_members(config: dict[str, Any]) -> tuple[list[dict[str, Any]], list[tuple[int, int]]]:
+    """A training trial's experiments (`{"config", "export_to"}`, None: the trial folder) and replicas ((member, seed)).
+
+    A stage job lists them (`MEMBERS`, `REPLICAS`); a `run` trial is one experiment's grid
+    point, its seeds in `replica_seeds`, exported to the trial's own folder.
+    """
+    if MEMBERS in config:
+        return [dict(m) for m in config[MEMBERS]], [(int(i), int(s)) for i, s in config[REPLICAS]]
+    point = {k: v for k, v in config.items() if k not in (REPLICA_SEEDS, EXPORT_KEY)}
+    seeds = list(config.get(REPLICA_SEEDS) or [config.get("seed", 0)])
+    return [{"config": point, "export_to": config.get(EXPORT_KEY)}], [(0, int(s)) for s in seeds]
+
+
+def _member_name(export: Path) -> str:
+    """How a trial of several experiments names one in its metrics: `<experiment>/<point>`."""
+    return f"{export.parent.name}/{export.name}"
+
+
 class EgoTrainable(AlgorithmTrainable):
-    """One ego-training trial: its seeds (replicas) train in one PPO algorithm, are evaluated and exported when done."""
+    """One ego-training trial: its replicas (seeds, of one experiment or several) train in one PPO algorithm, are
+    evaluated and exported when done."""
+
+    def _exports(self, members: list[dict[str, Any]]) -> list[Path]:
+        return [Path(m.get("export_to") or self.trial_folder) for m in members]
 
     def outputs_complete(self, config: dict[str, Any]) -> bool:
-        return _finished(
-            {
-                EXPORT_KEY: config.get(EXPORT_KEY) or self.trial_folder,
-                REPLICA_SEEDS: config.get(REPLICA_SEEDS) or [config.get("seed", 0)],
-            }
-        )
+        members, units = trial_members(config)
+        exports = self._exports(members)
+        return all((replica_folder(exports[i], s) / EVAL_FILE).is_file() for i, s in units)
 
     def build(self, config: dict[str, Any]) -> None:
-        config = dict(config)
-        self.export = Path(config.pop(EXPORT_KEY, None) or self.trial_folder)
-        exp = ExperimentConfig.model_validate({k: v for k, v in config.items() if k != REPLICA_SEEDS})
-        seeds = list(config.get(REPLICA_SEEDS) or [exp.seed])
-        self.replicas = [Replica(resolve(exp.model_copy(update={"seed": s}))) for s in seeds]
+        members, units = trial_members(config)
+        self.exports = self._exports(members)
+        exps = {i: ExperimentConfig.model_validate(members[i]["config"]) for i in sorted({i for i, _ in units})}
+        self.units = units
+        self.replicas = [Replica(resolve(exps[i].model_copy(update={"seed": s}))) for i, s in units]
+        # Metric prefixes: `seed=<s>/` in a trial of one experiment, `<experiment>/<point>/seed=<s>/` in one of several.
+        self.labels = [
+            f"{REPLICA_PREFIX}{s}" if len(members) == 1 else f"{_member_name(self.exports[i])}/{REPLICA_PREFIX}{s}"
+            for i, s in units
+        ]
         self.algo = build_algorithm(self.replicas)
+        exp = self.replicas[0].setup.exp
         maml = exp.maml
         self.meta = (
             MetaTrainer(self.algo, [e.name for e in self.replicas[0].setup.train], maml.inner_iterations, maml.outer_step)
             if method(exp.method).meta_learned
             else None
         )
-        self.history: list[list[dict[str, Any]]] = [[] for _ in seeds]
+        self.history: list[list[dict[str, Any]]] = [[] for _ in units]
 
     def advance(self) -> dict[str, Any]:
         with self.timings.measure("iterate"):
@@ -125,8 +162,8 @@ class EgoTrainable(AlgorithmTrainable):
             history.append({"training_iteration": self.iteration + 1, **row})
         metrics = {key: float(np.mean([row[key] for row in rows])) for key in rows[0]}
         metrics["env_steps"] = min(row["env_steps"] for row in rows)
-        for rep, row in zip(self.replicas, rows):
-            metrics.update({f"{REPLICA_PREFIX}{rep.own_seed}/{k}": v for k, v in row.items()})
+        for label, row in zip(self.labels, rows):
+            metrics.update({f"{label}/{k}": v for k, v in row.items()})
         budget = self.replicas[0].setup.exp.run.timesteps
         metrics["done"] = metrics["env_steps"] >= budget
         metrics[STEPS_DONE] = sum(min(row["env_steps"], budget) for row in rows)
@@ -137,8 +174,8 @@ class EgoTrainable(AlgorithmTrainable):
         return metrics
 
     def _finish(self) -> dict[str, float]:
-        """Evaluate every replica and export it as a trained-ego folder `<trial>/seed=<s>/`; return the evaluations
-        (each replica's under `seed=<s>/`, their mean under the plain keys) and the trial's training time (`wall_s`, `setup_s`)."""
+        """Evaluate every replica and export it as a trained-ego folder `<export>/seed=<s>/`; return the evaluations
+        (each replica's under its label, their mean under the plain keys) and the trial's training time (`wall_s`, `setup_s`)."""
         module = learner_module(self.algo)
         timing = {
             "wall_s": self.timings.seconds["iterate"],
@@ -150,10 +187,10 @@ class EgoTrainable(AlgorithmTrainable):
             final = evaluate(plain, rep.setup, rep.setup.exp.run.eval_episodes, rep.own_seed)
             evaluations.append(final)
             final = {**final, **timing, "replicas": len(self.replicas)}
-            export_replica(plain, rep, replica_folder(self.export, rep.own_seed), final, self.history[r])
+            export_replica(plain, rep, replica_folder(self.exports[self.units[r][0]], rep.own_seed), final, self.history[r])
         out = {key: float(np.mean([e[key] for e in evaluations])) for key in evaluations[0]} | timing
-        for rep, e in zip(self.replicas, evaluations):
-            out.update({f"{REPLICA_PREFIX}{rep.own_seed}/{k}": v for k, v in e.items()})
+        for label, e in zip(self.labels, evaluations):
+            out.update({f"{label}/{k}": v for k, v in e.items()})
         return out
 
     def save_extra(self, checkpoint_dir: Path) -> None:
@@ -238,6 +275,33 @@ def _unfinished(job: dict[str, Any]) -> dict[str, Any] | None:
     return {**job, "seed": seeds[0], REPLICA_SEEDS: seeds} if seeds else None
 
 
+def experiment_packs(jobs: list[dict[str, Any]], max_replicas: int = MAX_REPLICAS) -> list[dict[str, Any]]:
+    """`jobs` (`training_jobs`, narrowed to their unfinished seeds) as stage jobs of whole packs: the seeds of every job
+    whose egos can be replicas of one algorithm (`algorithm.packing_key`) share one, at most `max_replicas` a job.
+
+    A job is `{MEMBERS: [{"config", "export_to"}], REPLICAS: [[member, seed], ...]}` (plus the members' `run`
+    settings, which Tune's resource request reads). First-order MAML steps through its partners by name, so its
+    experiments pack only with those of the same population.
+    """
+    groups: dict[str, list[dict[str, Any]]] = defaultdict(list)
+    for job in jobs:
+        point = {k: v for k, v in job.items() if k not in (REPLICA_SEEDS, EXPORT_KEY)}
+        setup = resolve(ExperimentConfig.model_validate(point))
+        own = setup.population.name if method(setup.exp.method).meta_learned else ""
+        groups[packing_key(setup) + own].append(job)
+    out = []
+    for group in groups.values():
+        members = [
+            {"config": {k: v for k, v in job.items() if k not in (REPLICA_SEEDS, EXPORT_KEY)}, "export_to": job[EXPORT_KEY]}
+            for job in group
+        ]
+        units = [[i, s] for i, job in enumerate(group) for s in job[REPLICA_SEEDS]]
+        run = {"run": members[0]["config"]["run"]} if "run" in members[0]["config"] else {}
+        for n in range(math.ceil(len(units) / max_replicas)):
+            out.append({**run, MEMBERS: members, REPLICAS: units[n * max_replicas : (n + 1) * max_replicas]})
+    return out
+
+
 def train_stage(
     configs: list[Checked[ExperimentConfig]],
     storage: str | Path,
@@ -263,9 +327,9 @@ def train_stage(
     todo = [left for job in jobs if (left := _unfinished(job))]
     if not todo:
         return []
-    stage = Stage(TRAIN, EgoTrainable, _checkpoints(exps[0]), units=REPLICA_SEEDS, first_key="seed")
+    stage = Stage(TRAIN, EgoTrainable, _checkpoints(exps[0]), units=REPLICAS)
     spec = {"experiments": names, "jobs": jobs}  # every job, trained or not: the same experiments continue the same run
-    results = run_jobs(stage, spec, todo, names, storage, address, label, loggers)
+    results = run_jobs(stage, spec, experiment_packs(todo), names, storage, address, label, loggers)
     if results.errors:
         raise RuntimeError(f"{len(results.errors)} training trial(s) failed; see {storage / stage.run_name(names, spec)}")
     return sorted({Path(job[EXPORT_KEY]).parent.name for job in todo})

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from ray.rllib.algorithms.ppo import PPOConfig
@@ -56,8 +56,10 @@ class Replica:
         return self.setup.exp.seed if self.seed is None else int(self.seed)
 
 
-# What replicas of one algorithm share: they differ in seed, partners and starting weights only.
-PACKED_KEYS = ("method", "lam", "freeze", "z_lr_scale", "head_l2", "model", "ppo", "run", "maml", "mapping")
+# What replicas of one algorithm share: they differ in seed, partners, starting weights and the loss weights below only.
+PACKED_KEYS = ("method", "freeze", "z_lr_scale", "model", "ppo", "run", "maml", "mapping")
+# Loss weights the learner takes per replica (`LearnerSettings`): a lambda sweep's egos train in one algorithm.
+REPLICA_WEIGHTS = ("lam", "head_l2")
 
 
 def packing_key(setup: EgoSetup) -> str:
@@ -87,7 +89,8 @@ def _check_packable(replicas: list[Replica]) -> None:
             if len(s.train) != len(first.train) or (s.ego_agent, s.partner_agents) != (first.ego_agent, first.partner_agents):
                 differs.append("partner count or seats")
             raise ValueError(
-                f"replicas must differ in seed, partners and weights only; replica {rep.own_seed} differs in {differs}"
+                f"replicas must differ in seed, partners, weights, {' and '.join(REPLICA_WEIGHTS)} only; "
+                f"replica {rep.own_seed} differs in {differs}"
             )
 
 
@@ -276,7 +279,7 @@ def build_ppo_config(setup: EgoSetup | list[Replica], load: dict[str, str] | Non
         else partner_schedule(exp.mapping, [stream_seed(rep.own_seed, "mapping") for rep in replicas]),
     )
     trained = [STACK_ID, *(replica_id(mid, r) for r, rep in enumerate(replicas) for mid in rep.setup.head_ids)]
-    settings = exp.learner_settings()
+    settings = replace(exp.learner_settings(), **replica_weight_settings(replicas))
     shuffle_seeds = {
         replica_id(mid, r): shuffle_seed(rep.own_seed, mid) for r, rep in enumerate(replicas) for mid in rep.setup.head_ids
     }
@@ -296,6 +299,15 @@ def build_ppo_config(setup: EgoSetup | list[Replica], load: dict[str, str] | Non
             learner_class=MarginalPPOLearner, learner_config_dict={**settings.config_dict(), "shuffle_seeds": shuffle_seeds}
         )
     )
+
+
+def replica_weight_settings(replicas: list[Replica]) -> dict[str, float | tuple[float, ...]]:
+    """The learner's loss weights (`REPLICA_WEIGHTS`): one float where every replica has the same, else one per replica."""
+    out = {}
+    for key in REPLICA_WEIGHTS:
+        values = tuple(float(getattr(rep.setup.exp, key)) for rep in replicas)
+        out[key] = values[0] if len(set(values)) == 1 else values
+    return out
 
 
 def load_replica_weights(algo: Any, replicas: list[Replica]) -> None:

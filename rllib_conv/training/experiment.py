@@ -14,10 +14,8 @@ from pydantic import Field, model_validator
 
 from rllib_conv.common import config_files
 from rllib_conv.common.config_files import Checked, Strict
-from rllib_conv.common.file_versions import FileVersion, read_once
 from rllib_conv.common.methods import MethodName, method
-from rllib_conv.common.run_folders import CONFIG_FILE, checkpoints
-from rllib_conv.common.sealed import verify_file
+from rllib_conv.common.run_folders import CONFIG_FILE, checkpoints, read_trial_config
 from rllib_conv.envs.registry import game as game_record
 from rllib_conv.learners.settings import LearnerSettings
 from rllib_conv.training.settings import (
@@ -91,17 +89,8 @@ def trial_config(trial: str | Path) -> ExperimentConfig:
     ValueError naming the file when it is not what was saved (`common.sealed.verify_file`),
     not YAML, or not a valid config: a damaged config must not pass for another experiment.
     """
-    # A stage reads each trained ego's config once per curve it adapts: once per version of the file is enough.
-    return read_once(Path(trial) / CONFIG_FILE, _read_trial_config, _TRIAL_CONFIGS).model_copy(deep=True)
-
-
-_TRIAL_CONFIGS: dict[FileVersion, ExperimentConfig] = {}
-
-
-def _read_trial_config(path: Path) -> ExperimentConfig:
-    verify_file(path, "trial config")
-    raw = config_files.read_yaml(path, "trial config")
-    return config_files.check({} if raw is None else raw, ExperimentConfig, {}, f"trial config {str(path)!r}")[0]
+    path = Path(trial) / CONFIG_FILE
+    return config_files.check(read_trial_config(trial), ExperimentConfig, {}, f"trial config {str(path)!r}")[0]
 
 
 def check_trial(trial: str | Path) -> ExperimentConfig:

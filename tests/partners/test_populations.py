@@ -130,3 +130,12 @@ def test_an_empty_population_name_is_refused_not_read_as_the_working_folder(tmp_
     for name in ("", "  "):
         with pytest.raises(ValueError, match="population must name a built-in"):
             partners.get(name)
+
+
+def test_a_manifest_names_event_weights_only_for_partners_that_have_them(tmp_path) -> None:
+    pop = partners.get("blocks-perm")
+    pop.partners[0].hidden_utility = {"onion_pickup": 1.0}
+    saved = json.loads(pop.save(tmp_path / "population.json").read_text())["partners"]
+    assert saved[0]["hidden_utility"] == {"onion_pickup": 1.0}
+    assert all("hidden_utility" not in entry for entry in saved[1:])
+    assert Population.load(tmp_path).partners[1].hidden_utility is None

@@ -13,7 +13,7 @@ import torch
 
 from rllib_conv.envs.bandit.oracle import bandit_states
 from rllib_conv.envs.blocks import decode_observation
-from rllib_conv.learners.marginal_learner import MarginalPPOLearner
+from rllib_conv.learners.marginal_learner import HEAD_L2_KEY, MARGINAL_REG_KEY, MarginalPPOLearner
 from rllib_conv.modules import ego_id, partner_id
 from rllib_conv.modules.multi import replica_id
 from rllib_conv.modules.packed.stacked_multi import STACK_ID
@@ -108,6 +108,31 @@ def test_a_replica_trains_as_it_would_alone(ray_session) -> None:
         torch.testing.assert_close(w_packed[k], w_alone[k], rtol=1e-4, atol=1e-5)
     others, _ = _run([small("bandit-s2-hand", seed=s) for s in (5, 3, 7)], 3, replica=0)
     assert others != packed  # the neighbours are other runs
+
+
+def test_replicas_of_a_lambda_sweep_train_as_they_would_alone(ray_session) -> None:
+    """Egos of lam 0.5, 0 and 0.3 packed in one algorithm (each replica its own regulariser weight) get each its lone
+    run's returns and weights; the lam-0 ego's regulariser gradient is 0, though the pack computes every head.
+
+    Only the lam-0 ego's logged D and H differ: alone it skips them in its loss and logs them from each update's
+    last minibatch; in the pack they are computed on every minibatch and logged as their mean."""
+    sweep = [
+        small("bandit-s2-hand", seed=5, lam=0.5),
+        small("bandit-s2-hand", seed=3, lam=0.0),
+        small("bandit-s2-hand", seed=7, lam=0.3),
+    ]
+    gaps = []
+    for r in (0, 1):
+        alone, w_alone = _run([sweep[r]], 3)
+        packed, w_packed = _run(sweep, 3, replica=r)
+        keys = [k for k in alone[0] if sweep[r].lam > 0 or k not in (MARGINAL_REG_KEY, HEAD_L2_KEY)]
+        for a, p in zip(alone, packed):
+            np.testing.assert_allclose([p[k] for k in keys], [a[k] for k in keys], rtol=1e-4, atol=1e-5)
+        gaps.append(max((w_packed[k] - w_alone[k]).abs().max().item() for k in w_alone))
+    # The weights reach the loss: the lam-0 ego's seed under lam 0.5 ends much further from it than packing moves it.
+    _, w_lam0 = _run([sweep[1]], 3)
+    _, w_other = _run([small("bandit-s2-hand", seed=3, lam=0.5)], 3)
+    assert max(gaps) < max((w_other[k] - w_lam0[k]).abs().max().item() for k in w_lam0) / 10
 
 
 def test_partner_modules_never_change(ray_session) -> None:

@@ -308,6 +308,9 @@ def test_a_plan_of_two_selfplay_populations_trains_both_and_the_report_pools_the
     members = ["bandit-s2-selfplay-p0", "bandit-s2-selfplay-p1"]
     assert json.loads((game / "plan.json").read_text())["population_groups"] == {"bandit-s2-selfplay": members}
     assert all((game / "adaptation" / f"{m}__modular-lam0.5.csv").is_file() for m in members)
+    # Both populations' pairs trained in one Tune run (no core idles at the first one's tail), each written whole.
+    assert len(list(game.rglob("selfplay-stage-*"))) == 1 and not list(game.rglob("selfplay-bandit-s2-selfplay-p*"))
+    assert all(len(pd.read_csv(game / "populations" / m / "selfplay_report.csv")) == 3 for m in members)
     report = (out / "report" / "report.md").read_text()
     assert "`bandit-s2-selfplay` pools 2 independently trained self-play populations" in report
     # One seed per population: the interval over the two populations' means is the only one there is.

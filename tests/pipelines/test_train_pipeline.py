@@ -144,6 +144,38 @@ def test_a_stage_job_is_cut_to_fill_the_cores_and_each_seed_trains_as_alone(ray_
 
 
 @pytest.mark.slow
+def test_a_lambda_sweep_trains_in_shared_trials_and_each_ego_as_alone(ray_session, tmp_path) -> None:
+    # 3 experiments x 2 seeds that can be replicas of one algorithm: one job of 6, cut into 2 trials of 3 on the
+    # session's 2 CPUs, so a trial holds replicas of two experiments, each exported to its own experiment's folder.
+    sweep = [
+        experiment.checked({**tiny_experiment(f"sweep-{lam}"), "lam": lam, "seed": {"grid_search": [0, 1]}})
+        for lam in (0.0, 0.3, 0.5)
+    ]
+    assert train_stage(sweep, storage=tmp_path / "sweep") == ["sweep-0.0", "sweep-0.3", "sweep-0.5"]
+    (stage,) = (tmp_path / "sweep").glob("train-stage-*")
+    trials = [p for p in stage.iterdir() if p.is_dir() and p.name.startswith("EgoTrainable")]
+    assert len(trials) == 2
+    prefixes = [
+        {k.rpartition("/seed=")[0] for k in json.loads((t / "result.json").read_text().splitlines()[-1]) if "/seed=" in k}
+        for t in trials
+    ]
+    assert {"sweep-0.3/point_0"} < max(prefixes, key=len)  # the middle experiment's seeds are split between the trials
+    alone = tmp_path / "alone"
+    assert train_stage(
+        [experiment.checked({**tiny_experiment("sweep-0.3"), "lam": 0.3, "seed": {"grid_search": [1]}})], storage=alone
+    )
+
+    def seed_eval(root, name, seed):
+        folder = root / name / "point_0" / f"seed={seed}"
+        return {k: v for k, v in json.loads((folder / EVAL_FILE).read_text()).items() if k.startswith("eval/")}
+
+    assert seed_eval(tmp_path / "sweep", "sweep-0.3", 1) == pytest.approx(seed_eval(alone, "sweep-0.3", 1), rel=1e-4, abs=1e-5)
+    for name in ("sweep-0.0", "sweep-0.5"):
+        config = yaml.safe_load((tmp_path / "sweep" / name / "point_0" / "seed=0" / CONFIG_FILE).read_text())
+        assert config["lam"] == float(name.split("-")[1])
+
+
+@pytest.mark.slow
 def test_a_train_stage_with_more_seeds_trains_the_new_seeds_only(ray_session, tmp_path) -> None:
     raw = tiny_experiment("grown")
     assert train_stage([experiment.checked({**raw, "seed": {"grid_search": [0]}})], storage=tmp_path) == ["grown"]
