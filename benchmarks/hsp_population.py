@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import argparse
 import itertools
-from collections import Counter
 from pathlib import Path
 from typing import Any
 
@@ -23,34 +22,20 @@ import numpy as np
 import pandas as pd
 
 from benchmarks._common import write_result
-from rllib_conv import envs, partners
-from rllib_conv.envs.spaces import MASK_KEY, OBS_KEY
-from rllib_conv.partners.base import Partner
+from rllib_conv import partners
+from rllib_conv.partners.event_profiles import event_profile
 from rllib_conv.partners.population import PartnerEntry, Population
 
 
 def play(population: Population, entry: PartnerEntry, episodes: int, seed: int) -> dict[str, Any]:
     """`entry` in its seat with its counterpart in the other: soups and the partner seat's events per episode."""
-    env = envs.make_scored(population.env, **population.env_config)
-    seat = population.partner_agents[0]
-    other = next(a for a in env.possible_agents if a != seat)
-    players: dict[str, Partner] = {seat: entry.build(), other: partners.partner_from_spec(entry.counterpart)}
-    for i, player in enumerate(players.values()):
-        player.seed(seed + i)
-    events: Counter[str] = Counter()
-    score = 0.0
-    for episode in range(episodes):
-        obs, _ = env.reset(seed=seed + episode)
-        while env.agents:
-            actions = {a: players[a].act(obs[a][OBS_KEY], obs[a][MASK_KEY]) for a in env.agents}
-            obs, rewards, _, _, infos = env.step(actions)
-            score += rewards[seat]
-            events.update(infos[seat]["events"])
+    profile = event_profile(population, entry, episodes, seed)
+    score = profile.pop("score")
     return {
         "partner": entry.name,
         "weights": entry.hidden_utility,
-        "score": score / episodes,
-        **{f"events/{e}": events[e] / episodes for e in envs.game(population.env).events},
+        "score": score,
+        **{f"events/{e}": n for e, n in profile.items()},
     }
 
 

@@ -14,7 +14,8 @@ and idle cores), read from the `time/*` results every trial reports.
 `--measured` runs nothing: it reads a full plan already run by the new code (its stage
 markers and trials) beside the stage times an old `reproduce_summary` file recorded, or the
 game folder of the old code's own run of the plan on the same machine, and
-writes `reproduce_walltime_<game>_full.json` (or `<NAME>.json`).
+writes `reproduce_walltime_<game>_full.json` (or `<NAME>.json`); the totals and the ratio
+cover the stages both runs finished.
 """
 
 from __future__ import annotations
@@ -163,12 +164,15 @@ def measured(game_dir: Path, old_summary: Path, cores: int, name: str | None = N
             if math.isfinite(s.get("seconds") or math.nan)
         }
     new = _stage_seconds(game_dir)
+    # Only the stages both runs finished are compared (an old run may be stopped once the stages a change touches are done).
+    both = [stage for stage in new if stage in old]
     row = {
         "slice": game_dir.name,
         "what": f"the full {game_dir.name} plan: {loaders.read_plan(game_dir)}",
-        "old_wall_s": sum(old.values()),
-        "new_wall_s": sum(new.values()),
-        "speedup": sum(old.values()) / sum(new.values()),
+        "stages_compared": both,
+        "old_wall_s": sum(old[s] for s in both),
+        "new_wall_s": sum(new[s] for s in both),
+        "speedup": sum(old[s] for s in both) / sum(new[s] for s in both),
         "old_stages_s": old,
         "new_stages_s": new,
         "new_breakdown": breakdown(game_dir, new, cores),

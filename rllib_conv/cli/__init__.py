@@ -90,8 +90,8 @@ def _train(command: Callable[..., argparse.ArgumentParser]) -> None:
 def _partners(sub: Any, command: Callable[..., argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
         "partners",
-        help="partner populations: list, show, train, from-set",
-        description="Partner populations: list, show, train, from-set.",
+        help="partner populations: list, show, train, from-set, prune",
+        description="Partner populations: list, show, train, from-set, prune.",
     )
     psub = p.add_subparsers(dest="partners_command", required=True, metavar="COMMAND", parser_class=Parser)
     command("list", "list the built-in populations", commands.partners_list, psub)
@@ -117,6 +117,19 @@ def _partners(sub: Any, command: Callable[..., argparse.ArgumentParser]) -> None
     )
     q.add_argument("set", metavar="SET", help="an evaluation-set manifest file, or a shipped set (e.g. overcooked_heldout)")
     q.add_argument("--name", help="the population's name (default: <set name>-partners)")
+    q.add_argument("--out", default="populations", help="folder for the population (default: populations)")
+    q.add_argument("--overwrite", action="store_true", help="replace an existing population of the same name")
+    q = command(
+        "prune",
+        "keep a self-play population's most diverse training pairs by their event profiles (HSP's pool pruning)",
+        commands.partners_prune,
+        psub,
+    )
+    q.add_argument("population", metavar="NAME", help="a population folder or manifest (its training pairs need counterparts)")
+    q.add_argument("--keep", type=positive_int, required=True, help="training pairs to keep (test members are all kept)")
+    q.add_argument("--episodes", type=positive_int, default=10, help="episodes per pair for its event profile (default: 10)")
+    q.add_argument("--seed", type=int, default=0, help="seed of the profiling episodes (default: 0)")
+    q.add_argument("--name", help="the pruned population's name (default: <name>-pruned<keep>)")
     q.add_argument("--out", default="populations", help="folder for the population (default: populations)")
     q.add_argument("--overwrite", action="store_true", help="replace an existing population of the same name")
 

@@ -25,7 +25,7 @@ import yaml
 
 from rllib_conv import partners
 from rllib_conv.common import config_files
-from rllib_conv.common.run_folders import ADAPT_PREFIX, EVAL_FILE, SPEC_FILE, ZEROSHOT_PREFIX, trial_folders
+from rllib_conv.common.run_folders import ADAPT_PREFIX, EVAL_FILE, POPULATION_FILE, SPEC_FILE, ZEROSHOT_PREFIX, trial_folders
 from rllib_conv.pipelines import naming
 from rllib_conv.pipelines.adapt_config import AdaptConfig
 from rllib_conv.pipelines.evaluate_config import EvaluateConfig
@@ -332,7 +332,6 @@ def partners_train(args: argparse.Namespace) -> None:
 
 def partners_from_set(args: argparse.Namespace) -> None:
     """`rllib-conv partners from-set SET`: an evaluation set's partners as a population whose every member trains."""
-    from rllib_conv.common.run_folders import POPULATION_FILE
     from rllib_conv.partners.evaluation_sets import set_named
 
     population = set_named(args.set).training_population(args.name)
@@ -342,6 +341,22 @@ def partners_from_set(args: argparse.Namespace) -> None:
     population.save(target / POPULATION_FILE)
     print(f"population {population.name!r}: {len(population.partners)} partners to train with ({population.description})")
     print(f"wrote {target / POPULATION_FILE}")
+
+
+def partners_prune(args: argparse.Namespace) -> None:
+    """`rllib-conv partners prune NAME --keep K`: a self-play population cut to its K most diverse training pairs."""
+    from rllib_conv.pipelines.prune import PRUNE_REPORT_FILE, prune, pruned_name, write_pruned
+
+    out = writable(args.out, "--out")
+    source = partners.get(args.population)
+    target = out / (args.name or pruned_name(source, args.keep))
+    if target.exists() and not args.overwrite:  # before the episodes are played
+        raise ValueError(f"population folder {str(target)!r} already exists; choose another --name or pass --overwrite")
+    population, report = prune(source, args.keep, args.episodes, args.seed, target.name)
+    write_pruned(population, report, target, overwrite=args.overwrite)
+    kept = report.sort_values("order").loc[report["kept"], "partner"]
+    print(f"population {population.name!r}: kept {', '.join(kept)} of {len(report)} training pairs, most diverse first")
+    print(f"wrote {target / POPULATION_FILE} and {target / PRUNE_REPORT_FILE}")
 
 
 def crossplay(args: argparse.Namespace) -> None:

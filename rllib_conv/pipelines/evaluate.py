@@ -209,8 +209,10 @@ def draw(summary: pd.DataFrame, title: str, path: Path) -> None:
     for ax, stat in zip(axes, ("mean", "iqm")):
         value = summary[stat].to_numpy()
         low, high = summary[f"{stat}_low"].to_numpy(), summary[f"{stat}_high"].to_numpy()
-        errors = np.nan_to_num(np.stack([value - low, high - value]))  # one seed: no interval drawn
-        ax.errorbar(value, y, xerr=errors, fmt="o", capsize=4)
+        # A percentile interval need not hold its point (the IQM of a few seeds can lie outside the resampled IQMs'
+        # middle 95%), so it is drawn from its ends, not as errors around the point; one seed: no interval drawn.
+        ax.hlines(y, low, high, color="C0")
+        ax.plot(value, y, "o", color="C0")
         ax.axvline(1.0, color="grey", linestyle=":", linewidth=1)  # the best response's score
         ax.set_xlabel(f"{'IQM' if stat == 'iqm' else 'mean'} normalised score")
         ax.set_yticks(y, summary["agent"])

@@ -116,6 +116,12 @@ def trial_members(config: dict[str, Any]) -> tuple[list[dict[str, Any]], list[tu
     return [{"config": point, "export_to": config.get(EXPORT_KEY)}], [(0, int(s)) for s in seeds]
 
 
+def _mean_over(rows: list[dict[str, Any]]) -> dict[str, float]:
+    """Each key's mean over the replicas' rows that have it (replicas of several populations name other partners)."""
+    keys = dict.fromkeys(key for row in rows for key in row)
+    return {key: float(np.mean([row[key] for row in rows if key in row])) for key in keys}
+
+
 def _member_name(export: Path) -> str:
     """How a trial of several experiments names one in its metrics: `<experiment>/<point>`."""
     return f"{export.parent.name}/{export.name}"
@@ -160,7 +166,7 @@ class EgoTrainable(AlgorithmTrainable):
         rows = [summarize(result, rep.setup, r) for r, rep in enumerate(self.replicas)]
         for history, row in zip(self.history, rows):
             history.append({"training_iteration": self.iteration + 1, **row})
-        metrics = {key: float(np.mean([row[key] for row in rows])) for key in rows[0]}
+        metrics = _mean_over(rows)
         metrics["env_steps"] = min(row["env_steps"] for row in rows)
         for label, row in zip(self.labels, rows):
             metrics.update({f"{label}/{k}": v for k, v in row.items()})
@@ -188,7 +194,7 @@ class EgoTrainable(AlgorithmTrainable):
             evaluations.append(final)
             final = {**final, **timing, "replicas": len(self.replicas)}
             export_replica(plain, rep, replica_folder(self.exports[self.units[r][0]], rep.own_seed), final, self.history[r])
-        out = {key: float(np.mean([e[key] for e in evaluations])) for key in evaluations[0]} | timing
+        out = _mean_over(evaluations) | timing
         for label, e in zip(self.labels, evaluations):
             out.update({f"{label}/{k}": v for k, v in e.items()})
         return out
@@ -265,10 +271,6 @@ def training_jobs(raw: dict[str, Any], folder: Path) -> list[dict[str, Any]]:
     return [{**point, EXPORT_KEY: str(folder / f"point_{i}")} for i, point in enumerate(points)]
 
 
-def _finished(job: dict[str, Any]) -> bool:
-    return all((replica_folder(Path(job[EXPORT_KEY]), s) / EVAL_FILE).is_file() for s in job[REPLICA_SEEDS])
-
-
 def _unfinished(job: dict[str, Any]) -> dict[str, Any] | None:
     """`job` narrowed to its seeds not trained yet (None when all are): more seeds than an earlier run train only the new ones."""
     seeds = [s for s in job[REPLICA_SEEDS] if not (replica_folder(Path(job[EXPORT_KEY]), s) / EVAL_FILE).is_file()]
@@ -280,15 +282,13 @@ def experiment_packs(jobs: list[dict[str, Any]], max_replicas: int = MAX_REPLICA
     whose egos can be replicas of one algorithm (`algorithm.packing_key`) share one, at most `max_replicas` a job.
 
     A job is `{MEMBERS: [{"config", "export_to"}], REPLICAS: [[member, seed], ...]}` (plus the members' `run`
-    settings, which Tune's resource request reads). First-order MAML steps through its partners by name, so its
-    experiments pack only with those of the same population.
+    settings, which Tune's resource request reads). First-order MAML's outer steps focus every replica on its own k-th
+    training partner, so its egos of several populations pack too.
     """
     groups: dict[str, list[dict[str, Any]]] = defaultdict(list)
     for job in jobs:
         point = {k: v for k, v in job.items() if k not in (REPLICA_SEEDS, EXPORT_KEY)}
-        setup = resolve(ExperimentConfig.model_validate(point))
-        own = setup.population.name if method(setup.exp.method).meta_learned else ""
-        groups[packing_key(setup) + own].append(job)
+        groups[packing_key(resolve(ExperimentConfig.model_validate(point)))].append(job)
     out = []
     for group in groups.values():
         members = [

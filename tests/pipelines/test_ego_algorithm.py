@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 import torch
 
+from rllib_conv import partners
 from rllib_conv.envs.bandit.oracle import bandit_states
 from rllib_conv.envs.blocks import decode_observation
 from rllib_conv.learners.marginal_learner import HEAD_L2_KEY, MARGINAL_REG_KEY, MarginalPPOLearner
@@ -22,6 +23,7 @@ from rllib_conv.training.algorithm import Replica, build_algorithm, build_ppo_co
 from rllib_conv.training.ego_setup import resolve
 from rllib_conv.training.evaluate import head_probs
 from rllib_conv.training.experiment import ExperimentConfig
+from rllib_conv.training.maml import MetaTrainer
 from rllib_conv.training.replica_export import replica_module
 from rllib_conv.training.weights import learner_module
 
@@ -88,6 +90,18 @@ def _run(exps: list[ExperimentConfig], iterations: int, replica: int = 0):
         algo.stop()
 
 
+def _meta_run(exps: list[ExperimentConfig], outer_steps: int, replica: int = 0):
+    """`_run` for MAML egos: `outer_steps` outer steps of `MetaTrainer`, as `EgoTrainable` takes them."""
+    replicas = [Replica(resolve(exp)) for exp in exps]
+    algo = build_algorithm(replicas)
+    meta = MetaTrainer(algo, [e.name for e in replicas[0].setup.train], exps[0].maml.inner_iterations, exps[0].maml.outer_step)
+    try:
+        metrics = [summarize(meta.step(), replicas[replica].setup, replica) for _ in range(outer_steps)]
+        return metrics, learner_module(algo)[STACK_ID].task_state(replica)
+    finally:
+        algo.stop()
+
+
 def test_same_seed_same_metrics_different_seed_differs(ray_session) -> None:
     m1, w1 = _run([small("bandit-s2-hand", seed=3)], 3)
     m2, w2 = _run([small("bandit-s2-hand", seed=3)], 3)
@@ -135,6 +149,23 @@ def test_replicas_of_a_lambda_sweep_train_as_they_would_alone(ray_session) -> No
     assert max(gaps) < max((w_other[k] - w_lam0[k]).abs().max().item() for k in w_lam0) / 10
 
 
+def test_maml_egos_of_two_populations_packed_each_step_through_their_own_partners(ray_session, tmp_path) -> None:
+    """MAML's outer steps focus each replica on its own k-th training partner: an ego of the Arms 2 partners listed in
+    reverse packs beside one of the usual order and trains as it would alone."""
+    pop = partners.get("bandit-s2-hand")
+    reverse = pop.model_copy(update={"name": "s2-reversed", "partners": pop.entries("train")[::-1] + pop.entries("test")})
+    path = str(reverse.save(tmp_path / "s2-reversed" / "population.json"))
+    maml = {"method": "maml", "lam": 0.0, "maml": {"inner_iterations": 1}}
+    alone, w_alone = _meta_run([small(path, seed=4, **maml)], 3)
+    packed, w_packed = _meta_run([small("bandit-s2-hand", seed=3, **maml), small(path, seed=4, **maml)], 3, replica=1)
+    for a, p in zip(alone, packed):
+        np.testing.assert_allclose([p[k] for k in a], [a[k] for k in a], rtol=1e-5, atol=1e-6)
+    for k in w_alone:
+        torch.testing.assert_close(w_packed[k], w_alone[k], rtol=1e-4, atol=1e-5)
+    _, w_usual = _meta_run([small("bandit-s2-hand", seed=4, **maml)], 3)  # the order matters: it is each replica's own
+    assert any(not torch.allclose(w_usual[k], w_alone[k], rtol=1e-4, atol=1e-5) for k in w_alone)
+
+
 def test_partner_modules_never_change(ray_session) -> None:
     setup = resolve(small("bandit-s2-hand"))
     algo = build_ppo_config(setup).build_algo()
@@ -176,7 +207,9 @@ def test_checkpoint_round_trip_in_a_fresh_process(ray_session, tmp_path) -> None
         from rllib_conv.training.algorithm import Replica
         from rllib_conv.training.ego_setup import resolve
         from rllib_conv.training.experiment import ExperimentConfig
-        from rllib_conv.envs.bandit.oracle import bandit_states
+from rllib_conv.training.maml import MetaTrainer
+        from rllib_conv import partners
+from rllib_conv.envs.bandit.oracle import bandit_states
         from rllib_conv.training.evaluate import head_probs
         from rllib_conv.training.replica_export import replica_module
         ray.init(num_cpus=1, include_dashboard=False, log_to_driver=False)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import pandas as pd
 import pytest
@@ -94,6 +95,29 @@ def test_an_hsp_population_records_each_partners_weights_and_loads(ray_session, 
     capsys.readouterr()
     assert main(["partners", "show", str(tmp_path / "pops" / cfg.name)]) == 0
     assert json.dumps(expected["sp01"]) in capsys.readouterr().out
+    # HSP's pruning keeps the pair furthest from the others, its networks copied into a folder of its own.
+    assert (
+        main(
+            [
+                "partners",
+                "prune",
+                str(tmp_path / "pops" / cfg.name),
+                "--keep",
+                "1",
+                "--episodes",
+                "1",
+                "--out",
+                str(tmp_path / "pruned"),
+            ]
+        )
+        == 0
+    )
+    pruned = partners.get(str(tmp_path / "pruned" / f"{cfg.name}-pruned1"))
+    (kept,) = pruned.partners
+    assert kept.hidden_utility == expected[kept.name]
+    assert Path(kept.checkpoint).is_relative_to(tmp_path / "pruned") and Path(
+        kept.counterpart["params"]["checkpoint"]
+    ).is_relative_to(tmp_path / "pruned")
 
 
 def onion_pickups(partner: Partner, episodes: int = 3) -> float:

@@ -147,8 +147,21 @@ def test_a_stage_job_is_cut_to_fill_the_cores_and_each_seed_trains_as_alone(ray_
 def test_a_lambda_sweep_trains_in_shared_trials_and_each_ego_as_alone(ray_session, tmp_path) -> None:
     # 3 experiments x 2 seeds that can be replicas of one algorithm: one job of 6, cut into 2 trials of 3 on the
     # session's 2 CPUs, so a trial holds replicas of two experiments, each exported to its own experiment's folder.
+    # The middle one's population names its partners otherwise: each trial's means take every replica's own partners.
+    pop = partners.get("bandit-s1-hand")
+    renamed = [e.model_copy(update={"name": f"other-{e.name}"}) for e in pop.partners]
+    other = str(
+        pop.model_copy(update={"name": "s1-renamed", "partners": renamed}).save(tmp_path / "s1-renamed" / "population.json")
+    )
     sweep = [
-        experiment.checked({**tiny_experiment(f"sweep-{lam}"), "lam": lam, "seed": {"grid_search": [0, 1]}})
+        experiment.checked(
+            {
+                **tiny_experiment(f"sweep-{lam}"),
+                "lam": lam,
+                "seed": {"grid_search": [0, 1]},
+                **({"population": other} if lam == 0.3 else {}),
+            }
+        )
         for lam in (0.0, 0.3, 0.5)
     ]
     assert train_stage(sweep, storage=tmp_path / "sweep") == ["sweep-0.0", "sweep-0.3", "sweep-0.5"]
@@ -162,7 +175,8 @@ def test_a_lambda_sweep_trains_in_shared_trials_and_each_ego_as_alone(ray_sessio
     assert {"sweep-0.3/point_0"} < max(prefixes, key=len)  # the middle experiment's seeds are split between the trials
     alone = tmp_path / "alone"
     assert train_stage(
-        [experiment.checked({**tiny_experiment("sweep-0.3"), "lam": 0.3, "seed": {"grid_search": [1]}})], storage=alone
+        [experiment.checked({**tiny_experiment("sweep-0.3"), "lam": 0.3, "population": other, "seed": {"grid_search": [1]}})],
+        storage=alone,
     )
 
     def seed_eval(root, name, seed):
