@@ -10,7 +10,7 @@ import yaml
 from rllib_conv.cli import main
 from rllib_conv.common import methods, resources
 from rllib_conv.common.arrays import to_numpy
-from rllib_conv.common.atomic_files import replaced_atomically, write_text_atomically
+from rllib_conv.common.atomic_files import folder_replaced_atomically, replaced_atomically, write_text_atomically
 from rllib_conv.common.run_folders import experiment_name, read_marker, split_experiment, write_marker
 from rllib_conv.common.sealed import digest_path, seal_file, verify_file
 from rllib_conv.pipelines.plans import plan_for, read_plan_file, shipped_plan
@@ -123,3 +123,17 @@ def test_a_sealed_file_is_read_only_unchanged_and_an_unsealed_one_as_it_is(tmp_p
     path.unlink()
     with pytest.raises(ValueError, match="is missing"):
         verify_file(path, "trial config")
+
+
+def test_a_folder_is_replaced_whole_or_left_as_it_was(tmp_path) -> None:
+    target = tmp_path / "pop"
+    target.mkdir()
+    (target / "old.txt").write_text("old")
+    with pytest.raises(RuntimeError):
+        with folder_replaced_atomically(target) as staging:
+            (staging / "new.txt").write_text("half")
+            raise RuntimeError("killed while writing")
+    assert [p.name for p in tmp_path.iterdir()] == ["pop"] and [p.name for p in target.iterdir()] == ["old.txt"]
+    with folder_replaced_atomically(target) as staging:
+        (staging / "new.txt").write_text("new")
+    assert [p.name for p in tmp_path.iterdir()] == ["pop"] and [p.name for p in target.iterdir()] == ["new.txt"]

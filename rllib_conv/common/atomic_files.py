@@ -8,6 +8,8 @@ result files) is written this way.
 
 from __future__ import annotations
 
+import shutil
+import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -35,3 +37,24 @@ def write_text_atomically(target: str | Path, text: str) -> Path:
     with replaced_atomically(target) as tmp:
         tmp.write_text(text)
     return Path(target)
+
+
+@contextmanager
+def folder_replaced_atomically(target: str | Path) -> Iterator[Path]:
+    """Yield an empty folder to assemble `target`'s new content in: it replaces `target` (and whatever was there) when the
+    block ends, and is deleted if the block raises.
+
+    The folder is a hidden one beside `target` (`.NAME.<random>`), so a reader never finds a half-written `target`.
+    The swap is an `rmtree` then a `rename`: a kill between them leaves no `target` (its old content was being
+    replaced), never a mixed one.
+    """
+    target = Path(target)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
+    try:
+        yield staging
+        if target.exists():
+            shutil.rmtree(target)
+        staging.rename(target)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)

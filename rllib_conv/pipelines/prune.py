@@ -6,17 +6,17 @@ by farthest-point selection on those profiles (`most_diverse`). The new populati
 chosen pairs (with their FCP snapshots, `<pair>-init`/`-mid`, where the source has them) and every
 test member unchanged; their networks are copied in, so the folder stands alone like any
 population. `prune_report.csv` lists every training pair's profile and whether it was kept.
-Assembled in a temporary folder and moved into place whole.
+Assembled in a temporary folder and moved into place whole (`folder_replaced_atomically`).
 """
 
 from __future__ import annotations
 
 import shutil
-import tempfile
 from pathlib import Path
 
 import pandas as pd
 
+from rllib_conv.common.atomic_files import folder_replaced_atomically
 from rllib_conv.common.run_folders import POPULATION_FILE
 from rllib_conv.partners.event_profiles import event_profile, most_diverse, profiled_events
 from rllib_conv.partners.population import PartnerEntry, Population
@@ -81,18 +81,11 @@ def write_pruned(population: Population, report: pd.DataFrame, folder: Path, ove
     """Write `population` into `folder` (its networks copied in, paths relative) with `report`; the folder whole or not at all."""
     if folder.exists() and not overwrite:
         raise ValueError(f"population folder {str(folder)!r} already exists; choose another --name or pass --overwrite")
-    folder.parent.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", dir=folder.parent))
-    try:
+    with folder_replaced_atomically(folder) as staging:
         for entry in population.partners:
             _copy_networks(entry, staging)
         population.save(staging / POPULATION_FILE)
         report.to_csv(staging / PRUNE_REPORT_FILE, index=False)
-        if folder.exists():
-            shutil.rmtree(folder)
-        staging.rename(folder)
-    finally:
-        shutil.rmtree(staging, ignore_errors=True)
     return folder
 
 

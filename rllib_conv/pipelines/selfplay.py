@@ -45,7 +45,6 @@ from __future__ import annotations
 import json
 import math
 import shutil
-import tempfile
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -58,6 +57,7 @@ from ray.rllib.core.rl_module.multi_rl_module import MultiRLModuleSpec
 from ray.rllib.core.rl_module.rl_module import RLModuleSpec
 
 from rllib_conv import envs
+from rllib_conv.common.atomic_files import folder_replaced_atomically
 from rllib_conv.common.config_files import Checked
 from rllib_conv.common.run_folders import (
     POPULATION_FILE,
@@ -498,14 +498,7 @@ def train_populations(
     results = fit_stage(stage, spec, space, names, storage, address, label, loggers)
     written = []
     for cfg, target in zip(cfgs, targets):
-        target.parent.mkdir(parents=True, exist_ok=True)
-        staging = Path(tempfile.mkdtemp(prefix=f".{cfg.name}.", dir=target.parent))
-        try:
-            population, report = write_population(cfg, results, staging)
-            if target.exists():
-                shutil.rmtree(target)
-            staging.rename(target)
-        finally:
-            shutil.rmtree(staging, ignore_errors=True)
+        with folder_replaced_atomically(target) as staging:
+            _, report = write_population(cfg, results, staging)
         written.append((Population.load(target / POPULATION_FILE), report))
     return written

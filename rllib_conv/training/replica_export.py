@@ -11,8 +11,6 @@ to a temporary folder and moved into place only when complete.
 from __future__ import annotations
 
 import json
-import shutil
-import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -21,6 +19,7 @@ import torch
 import yaml
 from ray.rllib.core.rl_module.multi_rl_module import MultiRLModuleSpec
 
+from rllib_conv.common.atomic_files import folder_replaced_atomically
 from rllib_conv.common.run_folders import CHECKPOINT_PREFIX, CONFIG_FILE, EVAL_FILE, PROGRESS_FILES, RL_MODULE_DIR
 from rllib_conv.common.sealed import seal, seal_file
 from rllib_conv.modules.multi import TASK_ID, ConventionMultiRLModule
@@ -58,9 +57,7 @@ def export_replica(
     """
     if (folder / EVAL_FILE).is_file():
         return folder
-    folder.parent.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", dir=folder.parent))
-    try:
+    with folder_replaced_atomically(folder) as staging:
         (staging / CONFIG_FILE).write_text(yaml.safe_dump(replica.setup.exp.model_dump(), sort_keys=False))
         seal_file(staging / CONFIG_FILE)  # read back only if unchanged (`trial_config`): a damaged config is another experiment
         pd.DataFrame(progress).to_csv(staging / PROGRESS_FILES[0], index=False)
@@ -69,9 +66,4 @@ def export_replica(
         seal(checkpoint)
         # Last: a folder with eval.json is a finished ego (readers skip unfinished ones).
         (staging / EVAL_FILE).write_text(json.dumps(evaluation, indent=2) + "\n")
-        if folder.exists():
-            shutil.rmtree(folder)
-        staging.rename(folder)
-    finally:
-        shutil.rmtree(staging, ignore_errors=True)
     return folder
