@@ -26,6 +26,7 @@ import yaml
 from rllib_conv import partners
 from rllib_conv.common import config_files
 from rllib_conv.common.run_folders import ADAPT_PREFIX, EVAL_FILE, POPULATION_FILE, SPEC_FILE, ZEROSHOT_PREFIX, trial_folders
+from rllib_conv.partners.population import refuse_existing
 from rllib_conv.pipelines import naming
 from rllib_conv.pipelines.adapt_config import AdaptConfig
 from rllib_conv.pipelines.evaluate_config import EvaluateConfig
@@ -315,8 +316,7 @@ def partners_train(args: argparse.Namespace) -> None:
     config = config_files.load_checked(args.config, args.set, schema=SelfPlayConfig)
     target = writable(args.out, "--out") / config.first.name
     writable(args.storage, "--storage")
-    if target.exists() and not args.overwrite:
-        raise ValueError(f"population folder {str(target)!r} already exists; choose another name or pass --overwrite")
+    refuse_existing(target, args.overwrite)
     from rllib_conv.pipelines.selfplay import train_population
 
     population, report = train_population(
@@ -336,8 +336,7 @@ def partners_from_set(args: argparse.Namespace) -> None:
 
     population = set_named(args.set).training_population(args.name)
     target = writable(args.out, "--out") / population.name
-    if target.exists() and not args.overwrite:
-        raise ValueError(f"population folder {str(target)!r} already exists; choose another --name or pass --overwrite")
+    refuse_existing(target, args.overwrite, "--name")
     population.save(target / POPULATION_FILE)
     print(f"population {population.name!r}: {len(population.partners)} partners to train with ({population.description})")
     print(f"wrote {target / POPULATION_FILE}")
@@ -350,10 +349,9 @@ def partners_prune(args: argparse.Namespace) -> None:
     out = writable(args.out, "--out")
     source = partners.get(args.population)
     target = out / (args.name or pruned_name(source, args.keep))
-    if target.exists() and not args.overwrite:  # before the episodes are played
-        raise ValueError(f"population folder {str(target)!r} already exists; choose another --name or pass --overwrite")
+    refuse_existing(target, args.overwrite, "--name")  # before the episodes are played
     population, report = prune(source, args.keep, args.episodes, args.seed, target.name)
-    write_pruned(population, report, target, overwrite=args.overwrite)
+    write_pruned(population, report, target)
     kept = report.sort_values("order").loc[report["kept"], "partner"]
     print(f"population {population.name!r}: kept {', '.join(kept)} of {len(report)} training pairs, most diverse first")
     print(f"wrote {target / POPULATION_FILE} and {target / PRUNE_REPORT_FILE}")

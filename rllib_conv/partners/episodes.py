@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import itertools
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
 import numpy as np
 from pettingzoo.utils.env import AECEnv, ParallelEnv
@@ -25,7 +25,12 @@ def _tell_others(seats: dict[str, Partner], agent: str, observation: np.ndarray,
             partner.observe_other(observation, mask, action, agent)
 
 
-def episode_stream(env: AECEnv | ParallelEnv, seats: dict[str, Partner], seed: int = 0) -> Iterator[tuple[float, int]]:
+def episode_stream(
+    env: AECEnv | ParallelEnv,
+    seats: dict[str, Partner],
+    seed: int = 0,
+    on_infos: Callable[[dict[str, dict]], None] | None = None,
+) -> Iterator[tuple[float, int]]:
     """Play episodes without end with `seats[agent]` choosing for each agent; yield each one's (score, env steps).
 
     The score of an episode is the total reward of the first seat (the games are fully
@@ -34,6 +39,7 @@ def episode_stream(env: AECEnv | ParallelEnv, seats: dict[str, Partner], seed: i
     Episodes are seeded `seed, seed+1, ...` and the partner in seat i is seeded once
     (`common.seeds.seat_seed`), so play is reproducible. Every seat hears `start_episode` before each episode and
     `observe_other` after each move of another seat (what a partner adapting during play needs).
+    `on_infos`, if given, hears every step's infos by agent (in AEC games, the mover's as it observes).
     """
     missing = set(env.possible_agents) - set(seats)
     if missing:
@@ -48,7 +54,9 @@ def episode_stream(env: AECEnv | ParallelEnv, seats: dict[str, Partner], seed: i
         if isinstance(env, AECEnv):
             env.reset(seed=seed + ep)
             for agent in env.agent_iter():
-                obs, reward, term, trunc, _ = env.last()
+                obs, reward, term, trunc, info = env.last()
+                if on_infos is not None:
+                    on_infos({agent: info})
                 if agent == first:
                     score += reward
                 if term or trunc:
@@ -71,7 +79,9 @@ def episode_stream(env: AECEnv | ParallelEnv, seats: dict[str, Partner], seed: i
                     moves.append((agent, vec, mask, actions[agent]))
                 for move in moves:  # simultaneous moves: each seat hears the others' only after choosing its own
                     _tell_others(seats, *move)
-                obs, rewards, _, _, _ = env.step(actions)
+                obs, rewards, _, _, infos = env.step(actions)
+                if on_infos is not None:
+                    on_infos(infos)
                 score += rewards.get(first, 0.0)
                 steps += 1
         yield float(score), steps

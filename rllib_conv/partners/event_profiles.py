@@ -16,9 +16,8 @@ from collections import Counter
 import numpy as np
 
 from rllib_conv import envs
-from rllib_conv.common.seeds import seat_seed
-from rllib_conv.envs.spaces import MASK_KEY, OBS_KEY
 from rllib_conv.partners.base import Partner
+from rllib_conv.partners.episodes import episode_stream
 from rllib_conv.partners.kinds import partner_from_spec
 from rllib_conv.partners.population import PartnerEntry, Population
 
@@ -43,19 +42,9 @@ def event_profile(population: Population, entry: PartnerEntry, episodes: int, se
     seat = population.partner_agents[0]
     other = next(a for a in env.possible_agents if a != seat)
     players: dict[str, Partner] = {seat: entry.build(), other: partner_from_spec(entry.counterpart)}
-    for i, player in enumerate(players.values()):
-        player.seed(seat_seed(seed, i))
     counts: Counter[str] = Counter()
-    score = 0.0
-    for episode in range(episodes):
-        obs, _ = env.reset(seed=seed + episode)
-        for player in players.values():
-            player.start_episode()
-        while env.agents:
-            actions = {a: players[a].act(obs[a][OBS_KEY], obs[a][MASK_KEY]) for a in env.agents}
-            obs, rewards, _, _, infos = env.step(actions)
-            score += rewards[seat]
-            counts.update(infos[seat]["events"])
+    stream = episode_stream(env, players, seed, on_infos=lambda infos: counts.update(infos[seat]["events"]))
+    score = sum(next(stream)[0] for _ in range(episodes))
     return {"score": score / episodes, **{event: counts[event] / episodes for event in events}}
 
 

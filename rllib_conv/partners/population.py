@@ -182,6 +182,12 @@ _BUILTINS: dict[str, Callable[[], Population]] = {}
 _READY: dict[str, Callable[[], bool]] = {}
 
 
+def refuse_existing(folder: Path, overwrite: bool, name_option: str = "name") -> None:
+    """ValueError naming `folder` when a population folder is there and `overwrite` is off (checked before any work)."""
+    if folder.exists() and not overwrite:
+        raise ValueError(f"population folder {str(folder)!r} already exists; choose another {name_option} or pass --overwrite")
+
+
 def task_suffix(new_task: bool) -> str:
     """What a built-in population's name ends with on its game's new task (zero-shot finds it by that name)."""
     return "-newtask" if new_task else ""

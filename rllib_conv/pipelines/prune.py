@@ -77,10 +77,9 @@ def prune(
     return pruned, rows
 
 
-def write_pruned(population: Population, report: pd.DataFrame, folder: Path, overwrite: bool = False) -> Path:
-    """Write `population` into `folder` (its networks copied in, paths relative) with `report`; the folder whole or not at all."""
-    if folder.exists() and not overwrite:
-        raise ValueError(f"population folder {str(folder)!r} already exists; choose another --name or pass --overwrite")
+def write_pruned(population: Population, report: pd.DataFrame, folder: Path) -> Path:
+    """Write `population` into `folder` (its networks copied in, paths relative) with `report`, replacing what was there
+    (callers refuse an existing one first: `population.refuse_existing`); the folder whole or not at all."""
     with folder_replaced_atomically(folder) as staging:
         for entry in population.partners:
             _copy_networks(entry, staging)

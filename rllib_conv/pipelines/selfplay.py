@@ -75,7 +75,7 @@ from rllib_conv.learners.settings import LearnerSettings
 from rllib_conv.modules.multi import REPLICA_SEPARATOR, replica_id
 from rllib_conv.modules.task_module import TaskModule
 from rllib_conv.partners.episodes import play_episodes
-from rllib_conv.partners.population import PartnerEntry, Population
+from rllib_conv.partners.population import PartnerEntry, Population, refuse_existing
 from rllib_conv.partners.trained import PolicyPartner
 from rllib_conv.pipelines.selfplay_config import SelfPlayConfig
 from rllib_conv.training.algorithm import BASE_SEED, base_ppo_config
@@ -481,8 +481,7 @@ def train_populations(
     for cfg in cfgs:
         game_agents(cfg)
         target = Path(out).resolve() / cfg.name
-        if target.exists() and not overwrite:
-            raise ValueError(f"population folder {str(target)!r} already exists; choose another name or pass --overwrite")
+        refuse_existing(target, overwrite)
         targets.append(target)
     first = cfgs[0]
     checkpoint = tune.CheckpointConfig(num_to_keep=1, checkpoint_frequency=first.run.checkpoint_every, checkpoint_at_end=True)

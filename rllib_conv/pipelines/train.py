@@ -288,14 +288,12 @@ def experiment_packs(jobs: list[dict[str, Any]], max_replicas: int = MAX_REPLICA
     groups: dict[str, list[dict[str, Any]]] = defaultdict(list)
     for job in jobs:
         point = {k: v for k, v in job.items() if k not in (REPLICA_SEEDS, EXPORT_KEY)}
-        groups[packing_key(resolve(ExperimentConfig.model_validate(point)))].append(job)
+        member = {"config": point, "export_to": job[EXPORT_KEY], "seeds": job[REPLICA_SEEDS]}
+        groups[packing_key(resolve(ExperimentConfig.model_validate(point)))].append(member)
     out = []
     for group in groups.values():
-        members = [
-            {"config": {k: v for k, v in job.items() if k not in (REPLICA_SEEDS, EXPORT_KEY)}, "export_to": job[EXPORT_KEY]}
-            for job in group
-        ]
-        units = [[i, s] for i, job in enumerate(group) for s in job[REPLICA_SEEDS]]
+        members = [{"config": m["config"], "export_to": m["export_to"]} for m in group]
+        units = [[i, s] for i, m in enumerate(group) for s in m["seeds"]]
         run = {"run": members[0]["config"]["run"]} if "run" in members[0]["config"] else {}
         for n in range(math.ceil(len(units) / max_replicas)):
             out.append({**run, MEMBERS: members, REPLICAS: units[n * max_replicas : (n + 1) * max_replicas]})
