@@ -207,9 +207,7 @@ def test_checkpoint_round_trip_in_a_fresh_process(ray_session, tmp_path) -> None
         from rllib_conv.training.algorithm import Replica
         from rllib_conv.training.ego_setup import resolve
         from rllib_conv.training.experiment import ExperimentConfig
-from rllib_conv.training.maml import MetaTrainer
-        from rllib_conv import partners
-from rllib_conv.envs.bandit.oracle import bandit_states
+        from rllib_conv.envs.bandit.oracle import bandit_states
         from rllib_conv.training.evaluate import head_probs
         from rllib_conv.training.replica_export import replica_module
         ray.init(num_cpus=1, include_dashboard=False, log_to_driver=False)
