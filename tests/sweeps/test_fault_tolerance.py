@@ -36,7 +36,9 @@ def _algo(tmp_path: Path, **run):
     envs.register("flaky_bandit", _flaky_factory(tmp_path / "crashed", crash_at=100), overwrite=True)
     pop = partners.get("bandit-s1-hand").model_copy(update={"env": "flaky_bandit"})
     exp = ExperimentConfig(population="flaky", model={"hidden": 8}, ppo={"rollout_per_partner": 32, "num_epochs": 1}, run=run)
-    return build_ppo_config(setup_for(exp, pop, pop.entries("train"))).build_algo()
+    config = build_ppo_config(setup_for(exp, pop, pop.entries("train")))
+    # RLlib waits 60 s before restarting a failed runner by default; these tests check the restart, not the wait.
+    return config.fault_tolerance(delay_between_env_runner_restarts_s=1.0).build_algo()
 
 
 def _steps(result: dict) -> int | None:

@@ -1,5 +1,6 @@
-"""`reproduce` killed with SIGKILL in the middle of its train stage, and again in its adapt stage, then run again:
-it finishes without re-running a finished trial or pack, and its results and report equal an uninterrupted run's."""
+"""`reproduce` stopped by Ctrl-C in its train stage, killed with SIGKILL in the middle of that stage and again in its
+adapt stage, then run again: it finishes without re-running a finished trial or pack, and its results and report equal
+an uninterrupted run's."""
 
 from __future__ import annotations
 
@@ -80,16 +81,39 @@ def _report(root: Path) -> str:
     return re.sub(r"\(\d+ s\)", "(_ s)", text)  # stage wall times
 
 
-def test_reproduce_killed_in_train_and_in_adapt_finishes_as_an_uninterrupted_run(tmp_path) -> None:
+def _interrupt_in_train(plan: Path, out: Path) -> None:
+    """Ctrl-C (SIGINT to the driver) once a trial reports: Tune stops the trials and returns; the stage must not count
+    as finished, and the driver says how to go on."""
+    game, ray_tmp = out / "bandit", private_ray_tmp()
+    proc = _start(plan, out, ray_tmp)
+    deadline = time.time() + 600
+    while time.time() < deadline and proc.poll() is None and not any(game.glob("runs/train-stage-*/*/progress.csv")):
+        time.sleep(0.05)
+    assert proc.poll() is None and not (game / "train.done").exists(), "the run should still be training when interrupted"
+    os.kill(proc.pid, signal.SIGINT)
+    log, _ = proc.communicate(timeout=600)
+    kill_ray_instance(ray_tmp)
+    log = log.decode()
+    assert proc.returncode == 130, log[-4000:]
+    assert re.search(r"rllib-conv: interrupted: \d+ of \d+ trials of .*train-stage-.* run the same command again", log), log[
+        -4000:
+    ]
+    assert "[bandit] train: finished" not in log and not (game / "train.done").exists()
+
+
+def test_reproduce_interrupted_then_killed_in_train_and_in_adapt_finishes_as_an_uninterrupted_run(tmp_path) -> None:
+    """Ctrl-C in train, then SIGKILL in train and again in adapt, then run to the end: no finished trial or pack runs
+    again, and the results and report equal an uninterrupted run's."""
     plan = _plan(tmp_path)
     reference, ray_a = tmp_path / "reference", private_ray_tmp()
     _finish(_start(plan, reference, ray_a), ray_a)
 
     killed = tmp_path / "killed"
     game = killed / "bandit"
+    _interrupt_in_train(plan, killed)
     ray_b = private_ray_tmp()
     proc = _start(plan, killed, ray_b)
-    # Train: some egos finished, the stage not.
+    # Train again: some egos finished, the stage not.
     _kill_when(
         proc, ray_b, lambda: any(game.glob("runs/*__*/*/seed=*/eval.json")) and not (game / "train.done").exists(), "training"
     )
@@ -117,26 +141,3 @@ def test_reproduce_killed_in_train_and_in_adapt_finishes_as_an_uninterrupted_run
     for name, table in theirs.items():
         pd.testing.assert_frame_equal(ours[name], table, rtol=1e-6, atol=1e-7, obj=name)
     assert _report(killed) == _report(reference)
-
-
-def test_reproduce_interrupted_in_train_says_so_marks_nothing_done_and_continues(tmp_path) -> None:
-    # Ctrl-C (SIGINT to the driver): Tune stops the trials and returns. The stage must not count as finished.
-    plan, out = _plan(tmp_path), tmp_path / "interrupted"
-    game, ray_a = out / "bandit", private_ray_tmp()
-    proc = _start(plan, out, ray_a)
-    deadline = time.time() + 600
-    while time.time() < deadline and proc.poll() is None and not any(game.glob("runs/train-stage-*/*/progress.csv")):
-        time.sleep(0.05)
-    assert proc.poll() is None and not (game / "train.done").exists(), "the run should still be training when interrupted"
-    os.kill(proc.pid, signal.SIGINT)
-    log, _ = proc.communicate(timeout=600)
-    kill_ray_instance(ray_a)
-    log = log.decode()
-    assert proc.returncode == 130, log[-4000:]
-    assert re.search(r"rllib-conv: interrupted: \d+ of \d+ trials of .*train-stage-.* run the same command again", log), log[
-        -4000:
-    ]
-    assert "[bandit] train: finished" not in log and not (game / "train.done").exists()
-    ray_b = private_ray_tmp()
-    log = _finish(_start(plan, out, ray_b), ray_b)
-    assert "[bandit] train: running" in log and (game / "train.done").exists() and (game / "adapt.done").exists()
