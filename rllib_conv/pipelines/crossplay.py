@@ -45,18 +45,20 @@ def crossplay(a: Population, b: Population, episodes: int = 100, seed: int = 0) 
             f"{a.env} {a.env_config} seat {a.partner_agent} vs {b.env} {b.env_config} seat {b.partner_agent}"
         )
     env = envs.make_scored(a.env, **a.env_config)
-    ego_agent = next(x for x in env.possible_agents if x != a.partner_agent)
-    partners_b = [(e.name, e.build()) for e in b.partners]
+    seats = a.partner_agents
+    ego_agent = next(x for x in env.possible_agents if x not in seats)
+    # In a game of more than two seats a column's member sits in every partner seat (one player each), so the
+    # diagonal is still each member's self-play.
+    partners_b = [(e.name, {seat: e.build() for seat in seats}) for e in b.partners]
     rows = {}
     for entry in a.partners:
         ego = counterpart_of(entry, a)
         rows[entry.name] = {
-            name: float(play_episodes(env, {ego_agent: ego, a.partner_agent: partner}, episodes, seed).mean())
-            for name, partner in partners_b
+            name: float(play_episodes(env, {ego_agent: ego, **seated}, episodes, seed).mean()) for name, seated in partners_b
         }
     matrix = pd.DataFrame.from_dict(rows, orient="index")
     matrix.index.name = f"{a.name} ({ego_agent})"
-    matrix.columns.name = f"{b.name} ({a.partner_agent})"
+    matrix.columns.name = f"{b.name} ({', '.join(seats)})"
     return matrix
 
 

@@ -130,11 +130,18 @@ def members(cfg: SelfPlayConfig) -> list[tuple[int | None, int]]:
 
 
 def game_agents(cfg: SelfPlayConfig) -> list[str]:
-    """The game's two agents; ValueError unless `partner_agent` is one of them."""
+    """The game's agents; ValueError unless `partner_agent` names every seat but one (the ego's)."""
     agents = list(envs.make(cfg.env, **cfg.env_config).possible_agents)
-    if len(agents) != 2 or cfg.partner_agent not in agents:
-        raise ValueError(f"partner_agent {cfg.partner_agent!r} must be one of the game's two agents {agents}")
+    seats = cfg.partner_agents
+    if len(seats) != len(agents) - 1 or not set(seats) <= set(agents):
+        want = "one of the game's two agents" if len(agents) == 2 else f"a list of {len(agents) - 1} of the game's agents"
+        raise ValueError(f"partner_agent {cfg.partner_agent!r} must be {want} {agents} (every seat but the ego's)")
     return agents
+
+
+def ego_seat(cfg: SelfPlayConfig) -> str:
+    """The seat that is not a partner's: a member's counterpart plays it."""
+    return next(a for a in game_agents(cfg) if a not in cfg.partner_agents)
 
 
 def build_selfplay_config(cfg: SelfPlayConfig) -> PPOConfig:
@@ -292,7 +299,7 @@ class SelfPlayTrainable(AlgorithmTrainable):
         """Save the partner seat's module as it is now, with the score of the check that saw it (`fcp: true`)."""
         folder = self.trial_folder / FCP_DIR
         name = f"it{iteration:06d}"
-        learner_module(self.algo)[seat_module_id(self.cfg, self.cfg.partner_agent)].save_to_path(folder / name)
+        learner_module(self.algo)[seat_module_id(self.cfg, self.cfg.partner_agents[0])].save_to_path(folder / name)
         with (folder / FCP_INDEX).open("a") as index:  # after the module: an indexed snapshot is always whole
             index.write(json.dumps({"folder": name, "iteration": iteration, "env_steps": steps, "score": score}) + "\n")
 
@@ -302,7 +309,7 @@ class SelfPlayTrainable(AlgorithmTrainable):
             result = self.algo.train()
         runners = result.get("env_runners", {})
         steps = int(runners.get("num_env_steps_sampled_lifetime", 0))
-        first = cfg.partner_agent  # shared rewards: any seat's return is the team's
+        first = cfg.partner_agents[0]  # shared rewards: any seat's return is the team's
         out = {
             "env_steps": steps,
             "train_return": float(runners.get("agent_episode_returns_mean", {}).get(first, math.nan)),
@@ -371,8 +378,7 @@ def _pair_reports(cfg: SelfPlayConfig, results: tune.ResultGrid) -> list[tuple[A
 
 def write_population(cfg: SelfPlayConfig, results: tune.ResultGrid, folder: Path) -> tuple[Population, pd.DataFrame]:
     """Copy each passing pair's seat modules into `folder` and write the manifest and report."""
-    agents = game_agents(cfg)
-    counterpart_agent = next(a for a in agents if a != cfg.partner_agent)
+    counterpart_agent = ego_seat(cfg)
     rows, entries = [], []
     for r, report in _pair_reports(cfg, results):
         pair = report["pair"]
@@ -384,7 +390,7 @@ def write_population(cfg: SelfPlayConfig, results: tune.ResultGrid, folder: Path
             continue
         verify(r.checkpoint.path)
         modules = Path(r.checkpoint.path) / RL_MODULE_DIR
-        for sub, agent in (("partners", cfg.partner_agent), ("counterparts", counterpart_agent)):
+        for sub, agent in (("partners", cfg.partner_agents[0]), ("counterparts", counterpart_agent)):
             seal(shutil.copytree(modules / seat_module_id(cfg, agent, report.get("member")), folder / sub / name))
         params = {"greedy": cfg.greedy_partners, "seed": report["seed"]}
         trial = Path(r.path)
@@ -425,7 +431,7 @@ def write_population(cfg: SelfPlayConfig, results: tune.ResultGrid, folder: Path
         env=cfg.env,
         env_config=cfg.env_config,
         partner_agent=cfg.partner_agent,
-        description=f"self-play partners (seat {cfg.partner_agent}), gate {cfg.gate.score} over {cfg.gate.episodes} episodes"
+        description=f"self-play partners (seat {' or '.join(cfg.partner_agents)}), gate {cfg.gate.score} over {cfg.gate.episodes} episodes"
         + (", with each pair's start and midpoint (Fictitious Co-Play)" if cfg.fcp else "")
         + (joint_description(cfg) if cfg.joint else "")
         + (

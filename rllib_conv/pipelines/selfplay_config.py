@@ -57,7 +57,8 @@ class SelfPlayConfig(Strict):
     """Self-play partner training: `train_pairs + test_pairs` pairs, pair k seeded `seed + k`.
 
     `ppo.rollout_per_partner` is the rollout length per iteration. With `shared_seats`
-    one module plays both seats (Hanabi); otherwise each seat has its own module and the
+    one module plays every seat (Hanabi; any game of more than two seats, whose members then
+    sit in any of the `partner_agent` seats); otherwise each seat has its own module and the
     `partner_agent` seat of each pair becomes a partner. With `fcp` the population is
     Fictitious Co-Play's (Strouse et al., NeurIPS 2021): each passing pair's partner seat
     also at its start and midway, as partners of the pair's split. With `population_entropy`
@@ -76,7 +77,11 @@ class SelfPlayConfig(Strict):
     seed: int = 0
     pair: int = Field(0, ge=0)
     shared_seats: bool = False
-    partner_agent: str = "player_1"
+    partner_agent: str | list[str] = Field(
+        "player_1",
+        description="the seat whose policy becomes a partner; in a game of more than two seats, the list of every "
+        "seat but the ego's (e.g. [player_1, player_2]), with shared_seats, so each member can sit in any of them",
+    )
     greedy_partners: bool = True
     fcp: bool = Field(
         False,
@@ -125,7 +130,17 @@ class SelfPlayConfig(Strict):
             raise ValueError("trajectory_discount is TrajeDi's: set trajectory_diversity too")
         if self.hidden_utility is not None:
             self._check_hidden_utility(self.hidden_utility)
+        if len(self.partner_agents) > 1 and not self.shared_seats:
+            # A member is one policy for every partner seat (`Population.teams` seats any member anywhere).
+            raise ValueError("partner_agent: several partner seats need shared_seats: true (one module plays every seat)")
+        if len(set(self.partner_agents)) < len(self.partner_agents):
+            raise ValueError(f"partner_agent: seats must differ, got {self.partner_agent}")
         return self
+
+    @property
+    def partner_agents(self) -> list[str]:
+        """The partner seats, a list (one seat in a two-seat game)."""
+        return [self.partner_agent] if isinstance(self.partner_agent, str) else list(self.partner_agent)
 
     def _check_hidden_utility(self, hidden: HiddenUtilitySettings) -> None:
         if self.joint or self.shared_seats:
