@@ -9,8 +9,9 @@ H_proxy, cloned from other people's games. An agent here is one of
 - `members`: a population's members themselves in the ego seat (e.g. the BC proxies).
 
 Each of an agent's seeds plays `episodes` scored episodes (`envs.make_scored`: on Overcooked
-soups alone) with each held-out partner in its seat; the table has one row per (agent,
-seed, partner): `agent, seed, player, partner, episodes, mean_return, stderr`. The seed is
+soups alone) with each held-out partner in its seat (in a game of more than two seats, with
+every team of them, one per partner seat: `partner` is the team's name, `a+b`); the table has
+one row per (agent, seed, partner): `agent, seed, player, partner, episodes, mean_return, stderr`. The seed is
 the unit the report's intervals are over.
 """
 
@@ -86,7 +87,8 @@ def play_heldout(agents: list[HeldoutAgent], partners: Population, episodes: int
     if episodes < 1:
         raise ValueError(f"episodes must be at least 1, got {episodes}")
     env = envs.make_scored(partners.env, **partners.env_config)
-    ego_agent = next(a for a in env.possible_agents if a != partners.partner_agent)
+    seats = partners.partner_agents
+    ego_agent = next(a for a in env.possible_agents if a not in seats)
     rows = []
     for agent in agents:
         if agent.partner_agent not in (None, partners.partner_agent):
@@ -95,8 +97,10 @@ def play_heldout(agents: list[HeldoutAgent], partners: Population, episodes: int
                 f"but {partners.name!r} plays seat {partners.partner_agent!r}"
             )
         for p in agent.players:
-            for entry in partners.partners:
-                scores = play_episodes(env, {ego_agent: p.player, partners.partner_agent: entry.build()}, episodes, seed)
+            # With several partner seats, every team of members (one per seat, in seat order; `a+b`).
+            for name, members in partners.teams():
+                seated = {ego_agent: p.player, **{seat: entry.build() for seat, entry in zip(seats, members)}}
+                scores = play_episodes(env, seated, episodes, seed)
                 stderr = float(scores.std(ddof=1) / np.sqrt(len(scores))) if len(scores) > 1 else 0.0
-                rows.append([agent.label, p.seed, p.name, entry.name, episodes, float(scores.mean()), stderr])
+                rows.append([agent.label, p.seed, p.name, name, episodes, float(scores.mean()), stderr])
     return pd.DataFrame(rows, columns=HELDOUT_COLUMNS)

@@ -37,6 +37,16 @@ def test_members_score_one_with_themselves_and_each_pairing_is_one_row() -> None
     assert table.loc[table["player"] != table["partner"], "mean_return"].mean() < 1.0
 
 
+def test_with_three_seats_each_player_meets_every_team_of_the_held_out_members() -> None:
+    types, heldout = partners.get("lbf-heuristics"), partners.get("lbf-heldout-types")  # H1-H4; H3 and H4
+    table = play_heldout([members_agent("types", types)], heldout, episodes=3)
+    teams = ["H3+H3", "H3+H4", "H4+H3", "H4+H4"]
+    assert table["partner"].tolist() == teams * 4 and table["player"].tolist() == [
+        p for p in ("H1", "H2", "H3", "H4") for _ in teams
+    ]
+    assert table["mean_return"].between(0.0, 1.0).all() and table["mean_return"].max() > 0.0  # shares of the food
+
+
 def test_an_agent_trained_for_the_other_seat_and_a_zero_episode_count_are_refused() -> None:
     pop = partners.get(POP)
     other_seat = next(a for a in ("player_0", "player_1") if a != pop.partner_agent)
