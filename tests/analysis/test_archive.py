@@ -19,7 +19,6 @@ RESULTS = Path(__file__).parents[2] / "benchmarks" / "results"
 # (issue 45). No report may join this list; each leaves it when it is re-run.
 WITHOUT_DATA = {
     "reproduce_blocks_perm",
-    "reproduce_blocks_perm_beyond",
     "reproduce_blocks_selfplay",
     "reproduce_hanabi",
     "reproduce_hanabi_5seeds",
