@@ -113,6 +113,14 @@ class Population(BaseModel):
         combos = teams_of(self.entries(split), len(self.partner_agents))
         return [(team_name([e.name for e in combo]), list(combo)) for combo in combos]
 
+    def ego_agent(self, agents: list[str]) -> str:
+        """The seat of the game's `agents` that no partner of this population plays (the ego's)."""
+        return next(a for a in agents if a not in self.partner_agents)
+
+    def seated(self, team: list[PartnerEntry]) -> dict[str, Partner]:
+        """A team (one entry per partner seat, as `teams` gives it) built and seated: partner seat -> its player."""
+        return {seat: entry.build() for seat, entry in zip(self.partner_agents, team, strict=True)}
+
     def entries(self, split: Split | None = None) -> list[PartnerEntry]:
         """Return the entries of `split` (all entries if None), in manifest order."""
         return [e for e in self.partners if split is None or e.split == split]

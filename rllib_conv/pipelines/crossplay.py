@@ -46,7 +46,7 @@ def crossplay(a: Population, b: Population, episodes: int = 100, seed: int = 0) 
         )
     env = envs.make_scored(a.env, **a.env_config)
     seats = a.partner_agents
-    ego_agent = next(x for x in env.possible_agents if x not in seats)
+    ego_agent = a.ego_agent(env.possible_agents)
     # In a game of more than two seats a column's member sits in every partner seat (one player each), so the
     # diagonal is still each member's self-play.
     partners_b = [(e.name, {seat: e.build() for seat in seats}) for e in b.partners]

@@ -128,14 +128,13 @@ def score_table(
 ) -> pd.DataFrame:
     """One row per (player, partner or team): the return (exact where the game has one), the bound and the normalised score."""
     env = envs.make_scored(partners.env, **partners.env_config)
-    seats = partners.partner_agents
-    ego_agent = next(a for a in env.possible_agents if a not in seats)
+    ego_agent = partners.ego_agent(env.possible_agents)
     bound = bounds(partners, ego_agent, where, declared)
     exact_return = envs.game(partners.env).exact_return
     rows = []
     for p in players:
         for name, members in partners.teams():
-            seated = {ego_agent: p.player, **{seat: entry.build() for seat, entry in zip(seats, members)}}
+            seated = {ego_agent: p.player, **partners.seated(members)}
             exact = exact_return(seated, partners.env_config) if exact_return else None
             if exact is not None:
                 value, source, played, stderr = exact, "exact", 0, 0.0

@@ -87,8 +87,7 @@ def play_heldout(agents: list[HeldoutAgent], partners: Population, episodes: int
     if episodes < 1:
         raise ValueError(f"episodes must be at least 1, got {episodes}")
     env = envs.make_scored(partners.env, **partners.env_config)
-    seats = partners.partner_agents
-    ego_agent = next(a for a in env.possible_agents if a not in seats)
+    ego_agent = partners.ego_agent(env.possible_agents)
     rows = []
     for agent in agents:
         if agent.partner_agent not in (None, partners.partner_agent):
@@ -99,8 +98,7 @@ def play_heldout(agents: list[HeldoutAgent], partners: Population, episodes: int
         for p in agent.players:
             # With several partner seats, every team of members (one per seat, in seat order; `a+b`).
             for name, members in partners.teams():
-                seated = {ego_agent: p.player, **{seat: entry.build() for seat, entry in zip(seats, members)}}
-                scores = play_episodes(env, seated, episodes, seed)
+                scores = play_episodes(env, {ego_agent: p.player, **partners.seated(members)}, episodes, seed)
                 stderr = float(scores.std(ddof=1) / np.sqrt(len(scores))) if len(scores) > 1 else 0.0
                 rows.append([agent.label, p.seed, p.name, name, episodes, float(scores.mean()), stderr])
     return pd.DataFrame(rows, columns=HELDOUT_COLUMNS)

@@ -93,7 +93,7 @@ def marginal_states(population: Population, episodes: int = 200, seed: int = 0) 
     if listed is not None:
         return listed(population.env_config)
     env = envs.make(population.env, **population.env_config)
-    ego_agent = next(a for a in env.possible_agents if a != population.partner_agent)
+    ego_agent = population.ego_agent(env.possible_agents)
     oracle = OraclePartner("oracle", population.env, population.env_config, seed)
     for i, entry in enumerate(population.entries("train")):
         play_episodes(env, {ego_agent: oracle, population.partner_agent: entry.build()}, episodes, series_seed(seed, i))
