@@ -18,7 +18,6 @@ RESULTS = Path(__file__).parents[2] / "benchmarks" / "results"
 # Committed before reports carried their data: their run folders are gone, so they cannot be rebuilt
 # (issue 45). No report may join this list; each leaves it when it is re-run.
 WITHOUT_DATA = {
-    "reproduce_blocks_selfplay",
     "reproduce_hanabi",
     "reproduce_hanabi_5seeds",
     "reproduce_hanabi_5seeds_baselines",
