@@ -82,14 +82,16 @@ def test_three_seat_teams_learn_and_their_members_train_an_ego_on_every_team(ray
     train = [e.name for e in population.entries("train")]
     assert train[0] == "sp00-init" and train[-1] == "sp00"
     # Cross-play seats a column's member in both partner seats: the diagonal is each member's self-play.
-    matrix = crossplay(population, population, episodes=30)
+    matrix = crossplay(population, population, episodes=10)
     assert list(matrix.index) == list(matrix.columns) == list(by_name) and matrix.columns.name.endswith("(player_1, player_2)")
     assert matrix.loc["sp01", "sp01"] > matrix.loc["sp01-init", "sp01-init"]
 
     # The members are partners like the heuristic types: an ego trains with every team of two of them.
     exp = {"name": "on-sp", "population": str(tmp_path / "pops" / "lbf-sp"), "model": {"hidden": 8}}
     exp_file = tmp_path / "on-sp.yaml"
-    exp_file.write_text(json.dumps({**exp, "ppo": {"rollout_per_partner": 50, "num_epochs": 1}, "run": {"timesteps": 600}}))
+    exp_file.write_text(
+        json.dumps({**exp, "ppo": {"rollout_per_partner": 50, "num_epochs": 1}, "run": {"timesteps": 600, "eval_episodes": 4}})
+    )
     assert main(["train", str(exp_file), "--storage", str(tmp_path / "egos")]) == 0
     (result,) = (tmp_path / "egos" / "on-sp").glob("EgoTrainable_*/result.json")
     last = json.loads(result.read_text().splitlines()[-1])
