@@ -40,7 +40,7 @@ def event_profile(population: Population, entry: PartnerEntry, episodes: int, se
         raise ValueError(f"population {population.name!r}: partner {entry.name!r} has no counterpart to play with")
     env = envs.make_scored(population.env, **population.env_config)
     seat = population.partner_agents[0]
-    other = next(a for a in env.possible_agents if a != seat)
+    other = population.ego_agent(env.possible_agents)
     players: dict[str, Partner] = {seat: entry.build(), other: partner_from_spec(entry.counterpart)}
     counts: Counter[str] = Counter()
     stream = episode_stream(env, players, seed, on_infos=lambda infos: counts.update(infos[seat]["events"]))
