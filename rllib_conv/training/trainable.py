@@ -23,8 +23,10 @@ import torch
 from ray import tune
 from ray.tune.execution.placement_groups import PlacementGroupFactory
 
+from rllib_conv.common.run_folders import CHECKPOINT_PREFIX
 from rllib_conv.common.sealed import seal, verify
 from rllib_conv.training import rng_state
+from rllib_conv.training.surviving_checkpoint import TRIAL_METRICS_FILE, checkpoint_index, trial_metrics
 from rllib_conv.training.timings import Timings
 from rllib_conv.training.tuning import trial_job, trial_resources
 
@@ -91,10 +93,19 @@ class AlgorithmTrainable(tune.Trainable):
             seal(checkpoint_dir)
             return
         self.algo.save_to_path(checkpoint_dir)
+        (Path(checkpoint_dir) / TRIAL_METRICS_FILE).write_text(json.dumps(trial_metrics(self)))
         rng_state.save(self.algo, checkpoint_dir)
         (Path(checkpoint_dir) / TIMINGS_FILE).write_text(json.dumps(self.timings.state()))
         self.save_extra(Path(checkpoint_dir))
         seal(checkpoint_dir)
+
+    def restore(self, checkpoint_path: Any) -> None:
+        super().restore(checkpoint_path)
+        # The next checkpoint follows the one restored, whichever Tune's experiment state named (`surviving_checkpoint`).
+        checkpoint = getattr(checkpoint_path, "checkpoint", checkpoint_path)
+        path = Path(getattr(checkpoint, "path", checkpoint))
+        if self._storage is not None and path.name.startswith(CHECKPOINT_PREFIX):
+            self._storage.current_checkpoint_index = checkpoint_index(path)
 
     def load_checkpoint(self, checkpoint: str) -> None:
         verify(checkpoint)

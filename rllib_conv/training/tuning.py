@@ -27,6 +27,7 @@ from rllib_conv.common.config_files import GRID_KEY
 from rllib_conv.common.run_folders import SPEC_FILE, spec_digest
 from rllib_conv.common.tracking import LOGGERS
 from rllib_conv.training.callbacks import PROGRESS, KeepLogsAtCheckpoints, TrimRerunResults, restore_checkpointed_logs
+from rllib_conv.training.surviving_checkpoint import ResumeFromSurvivingCheckpoint
 
 # A stage's Tune run (`job_param_space`): every trial's config is one job under this key.
 JOB_KEY = "job"
@@ -226,6 +227,7 @@ def fit(
     callbacks = [
         TrimRerunResults(),
         KeepLogsAtCheckpoints(),
+        ResumeFromSurvivingCheckpoint(),
         progress if isinstance(progress, Callback) else PROGRESS[progress](),
         *logger_callbacks(loggers, path, name),
     ]

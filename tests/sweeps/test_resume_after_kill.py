@@ -1,11 +1,13 @@
 """A sweep killed with SIGKILL mid-way resumes: every trial finishes, no iteration repeats or is
-missing, and the results equal those of an uninterrupted run with the same seeds."""
+missing, and the results equal those of an uninterrupted run with the same seeds, also when the
+checkpoint that Tune's experiment state names was pruned before the state was saved again."""
 
 from __future__ import annotations
 
 import json
 import os
 import pickle
+import shutil
 import signal
 import subprocess
 import sys
@@ -16,6 +18,7 @@ import pandas as pd
 import pytest
 import torch
 import yaml
+from ray.tune.experiment.trial import Trial
 
 from rllib_conv.common.run_folders import RL_MODULE_DIR, checkpoints
 from rllib_conv.training.checkpoints import last_checkpoint
@@ -48,6 +51,31 @@ def _iterations(storage: Path) -> list[int]:
         except (pd.errors.EmptyDataError, KeyError, ValueError):
             done.append(0)
     return done
+
+
+def _named_checkpoints(storage: Path) -> dict[str, Path]:
+    """Per trial folder name: the checkpoint that Tune's experiment state names as the trial's latest (read as Tune reads it)."""
+    (state_file,) = storage.glob("sweep/experiment_state-*.json")
+    named = {}
+    for trial_state, run_metadata in json.loads(state_file.read_text())["trial_data"]:
+        trial = Trial.from_json_state(trial_state, stub=True)
+        trial.restore_run_metadata(run_metadata)
+        if trial.checkpoint is not None:
+            named[Path(trial.checkpoint.path).parent.name] = Path(trial.checkpoint.path)
+    return named
+
+
+def _prune_before_the_state_names_a_successor(storage: Path) -> Path:
+    """Make one trial's named checkpoint gone with a complete later one on disk: what a kill between a prune and
+    Tune's next save of its state leaves (seen once in CI). Returns the trial's folder."""
+    named = _named_checkpoints(storage)
+    assert named, "Tune should have saved a state naming a checkpoint before the kill"
+    folder, checkpoint = sorted(named.items())[-1]
+    successor = checkpoint.with_name(f"checkpoint_{int(checkpoint.name.rsplit('_', 1)[1]) + 1:06d}")
+    if not successor.exists():  # the state named the newest: a copy plays the successor (same state, same counts)
+        shutil.copytree(checkpoint, successor)
+    shutil.rmtree(checkpoint)
+    return storage / "sweep" / folder
 
 
 def _outcome(storage: Path) -> dict[float, dict]:
@@ -85,6 +113,7 @@ def test_sigkill_then_resume_matches_an_uninterrupted_sweep(tmp_path) -> None:
     # Tear them all here, mid-row, so that every resume meets that case.
     for path in [*interrupted.glob("sweep/*/progress.csv"), *interrupted.glob("sweep/*/result.json")]:
         path.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
+    pruned = _prune_before_the_state_names_a_successor(interrupted)
 
     ray_c = private_ray_tmp()
     proc = _sweep(config, interrupted, ray_c, "--resume")
@@ -92,6 +121,7 @@ def test_sigkill_then_resume_matches_an_uninterrupted_sweep(tmp_path) -> None:
     kill_ray_instance(ray_c)
     assert proc.returncode == 0, out.decode()[-3000:]
     assert "--- 2/2 trials finished ---" in out.decode()  # the live table's last print
+    assert f"it resumes from {pruned}/checkpoint_" in out.decode()
 
     resumed, expected = _outcome(interrupted), _outcome(reference)
     assert sorted(resumed) == sorted(expected) == [0.0, 0.5]
