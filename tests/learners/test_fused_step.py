@@ -109,3 +109,32 @@ def test_a_restored_optimizer_state_is_the_one_the_next_step_uses() -> None:
         for p, r in zip(ours, ref):
             torch.testing.assert_close(p.detach(), r.detach(), rtol=1e-6, atol=1e-7, msg=f"step {step}")
     assert int(opt.state[ours[0]]["step"]) == int(ref_opt.state[ref[0]]["step"]) == 3
+
+
+def test_backward_accumulates_into_the_flat_gradient_buffer_with_the_same_weights() -> None:
+    """`zero_grad` binds each gradient to a view of a flat buffer: backward fills it in place (no concatenation per
+    step), and the weights equal those of the concatenating path bit for bit, an unreached parameter counting as 0."""
+    shapes = [(2, 3, 4), (2, 3), (2, 4)]  # the last one no loss reaches
+    start = [torch.randn(s, generator=torch.Generator().manual_seed(i)) for i, s in enumerate(shapes)]
+    x = torch.randn(2, 5, 4, generator=torch.Generator().manual_seed(9))
+
+    def run(bound: bool) -> tuple[list[torch.Tensor], FusedAdamStep]:
+        params = [torch.nn.Parameter(t.clone()) for t in start]
+        fused = FusedAdamStep([torch.optim.Adam(params[:2], lr=0.01), torch.optim.Adam(params[2:], lr=0.01)], 1.0, [1, 1])
+        for _ in range(5):
+            fused.zero_grad()
+            if not bound:  # what another loop (RLlib's own) leaves: no gradient tensors, so the step concatenates
+                for p in params:
+                    p.grad = None
+            loss = (torch.tanh(torch.bmm(x, params[0].transpose(1, 2)) + params[1].unsqueeze(1)) ** 2).sum()
+            loss.backward()
+            if bound:
+                assert all(group.flat_grad() is group.grad for group in fused.groups)
+            fused.step()
+        return params, fused
+
+    (bound, fused), (concatenated, _) = run(True), run(False)
+    for a, b in zip(bound, concatenated):
+        assert torch.equal(a.detach(), b.detach())
+    assert torch.equal(bound[2].detach(), start[2])  # never reached: Adam's zero gradient moves nothing
+    assert fused.groups[0].grad.shape == (2, 3 * 4 + 3)

@@ -5,7 +5,8 @@ RLlib's learner clips each optimizer's gradients by their global norm (`grad_cli
 turn, paying Python overhead per optimizer and per parameter. `FusedAdamStep` does the same
 arithmetic with a few tensor ops whatever the number of layers: each optimizer's parameters
 and Adam moments live in flat buffers (the parameters' data are views into them), so a step
-is one concatenation of the gradients, one norm and one scale per optimizer, then one
+is one norm and one scale per optimizer (the gradients too are views into a flat buffer,
+which backward accumulates into), then one
 functional `adam` call per set of hyperparameters on torch's fused kernel (one pass over each
 tensor; the foreach path makes a dozen: `benchmarks/adam_kernel.py`). Fused Adam is Adam's
 arithmetic with other rounding: weights agree with RLlib's loop to float tolerance, not bit
@@ -101,6 +102,8 @@ class _FlatGroup:
         for p, view in zip(self.params, self.views(self.data)):
             p.data = view  # same values, now stored in the flat buffer the fused step updates in one call
         self._bind_state()
+        self.grad: torch.Tensor | None = None  # the flat gradient buffer, once `bind_grads` made it
+        self._grad_views: list[torch.Tensor] | None = None
 
     def _flat(self, tensors: list[torch.Tensor]) -> torch.Tensor:
         """`tensors` (shaped as the parameters) side by side in one [segment shape..., n] tensor."""
@@ -127,8 +130,24 @@ class _FlatGroup:
             st.update(step=self.steps[i], exp_avg=m, exp_avg_sq=v)
         self._bound = states[0]["exp_avg"]
 
+    def bind_grads(self) -> None:
+        """Zero the flat gradient buffer and make each parameter's `grad` its view, so backward accumulates into it in place."""
+        if self._grad_views is None:
+            self.grad = torch.zeros_like(self.data)
+            self._grad_views = self.views(self.grad)
+        else:
+            self.grad.zero_()
+        for p, view in zip(self.params, self._grad_views):
+            p.grad = view
+
     def flat_grad(self) -> torch.Tensor:
-        """Every parameter's gradient in the flat layout (zeros for a parameter this loss did not reach)."""
+        """Every parameter's gradient in the flat layout (zeros for a parameter this loss did not reach).
+
+        The bound buffer itself while every gradient is still its view (`bind_grads`), else a
+        concatenation (another loop, e.g. RLlib's own, set the gradients to None or replaced them).
+        """
+        if self._grad_views is not None and all(p.grad is v for p, v in zip(self.params, self._grad_views)):
+            return self.grad
         return self._flat([p.grad if p.grad is not None else torch.zeros_like(p) for p in self.params])
 
     def state_for_step(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
@@ -168,9 +187,9 @@ class FusedAdamStep:
         self.params = [p for g in self.groups for p in g.params]
 
     def zero_grad(self) -> None:
-        """Drop every gradient (as `zero_grad(set_to_none=True)`)."""
-        for p in self.params:
-            p.grad = None
+        """Zero every gradient, as views of each optimizer's flat gradient buffer (`_FlatGroup.bind_grads`)."""
+        for group in self.groups:
+            group.bind_grads()
 
     def _clipped(self, group: _FlatGroup) -> tuple[torch.Tensor, torch.Tensor | None]:
         """The group's flat gradient clipped by RLlib's rule per segment, and the norms before clipping (None without clipping)."""
