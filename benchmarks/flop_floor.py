@@ -7,7 +7,9 @@ products, forward and backward) and timed (medians over `--repeats`, alternating
 fixed batch for the update). Beside them, the machine's own speed at the same arithmetic:
 one core's float32 batched matrix product at the learner's largest layer (`peak`: the
 replicas x minibatch rows x hidden units of its hidden-to-hidden layers), the best the
-update could run at.
+update could run at, and the same product in bfloat16 (`peak_bf16`: the opt-in
+`ppo.precision: bfloat16` learner's matrix products; several times float32's on a CPU with
+AMX or AVX512-BF16 units, slower without).
 
 The floor of a plan's ego training counts every ego the full plan trains as it trains it
 (`plan_flops`): each population with its own partner count (so its own number of heads), each
@@ -19,7 +21,8 @@ partner count, not on the partners). The floor is the plan's FLOPs / (cores x pe
 change to the training loop beats without changing the networks, the epochs or the budgets. It
 leaves out the partners' networks (self-play partners act through networks as large as the
 ego's task module), self-play, adaptation and evaluation: a lower bound of the train stage, and
-of the plan. The machine (CPU model, vector ISA) is in the result, as every benchmark's. Writes
+of the plan; `plan_train_floor_bf16_min` is the same at the bfloat16 peak. The machine (CPU
+model, vector ISA) is in the result, as every benchmark's. Writes
 `benchmarks/results/flop_floor.json`, and per game the plan's rows under `plans`.
 
     OMP_NUM_THREADS=1 .venv/bin/python -m benchmarks.flop_floor [--repeats 5] [--games bandit blocks hanabi] [--seeds 3]
@@ -63,9 +66,9 @@ def flops(call: Any) -> tuple[int, Any]:
     return counter.get_total_flops(), out
 
 
-def peak_gflops(rows: int, hidden: int, repeats: int = 20) -> float:
-    """One core's float32 GFLOP/s on `SEEDS` stacked [rows, hidden] x [hidden, hidden] products (the learner's largest layer)."""
-    a, b = torch.randn(SEEDS, rows, hidden), torch.randn(SEEDS, hidden, hidden)
+def peak_gflops(rows: int, hidden: int, repeats: int = 20, dtype: torch.dtype = torch.float32) -> float:
+    """One core's GFLOP/s on `SEEDS` stacked [rows, hidden] x [hidden, hidden] products (the learner's largest layer) in `dtype`."""
+    a, b = torch.randn(SEEDS, rows, hidden, dtype=dtype), torch.randn(SEEDS, hidden, hidden, dtype=dtype)
     seconds = median_seconds({"bmm": lambda: torch.bmm(a, b)}, repeats)["bmm"]
     return 2 * SEEDS * rows * hidden * hidden / seconds / 1e9
 
@@ -140,6 +143,7 @@ def measure(game: str, repeats: int, folder: Path, seeds: int) -> tuple[dict[str
         algo.stop()
     hidden = envs.game(game).training_defaults().hidden
     peak = peak_gflops(config.minibatch_size, hidden)
+    peak_bf16 = peak_gflops(config.minibatch_size, hidden, dtype=torch.bfloat16)
     row = {
         "env": game,
         "env_steps_per_iteration": steps,
@@ -148,6 +152,7 @@ def measure(game: str, repeats: int, folder: Path, seeds: int) -> tuple[dict[str
         "sample_gflops": sample_flops / seconds["sample"] / 1e9,
         "update_gflops": update_flops / seconds["update"] / 1e9,
         "peak_gflops": peak,
+        "peak_bf16_gflops": peak_bf16,
         "update_at_peak": update_flops / seconds["update"] / 1e9 / peak,
     }
     plan_rows = plan_flops(game, seeds, folder)
@@ -159,6 +164,7 @@ def measure(game: str, repeats: int, folder: Path, seeds: int) -> tuple[dict[str
             "plan_ego_steps": plan_steps,
             "plan_mflop_per_step": plan_flop / plan_steps / 1e6,
             "plan_train_floor_min": plan_flop / (cores * peak * 1e9) / 60,
+            "plan_train_floor_bf16_min": plan_flop / (cores * peak_bf16 * 1e9) / 60,
             "plan_target_min": TARGET_MINUTES[game],
             "trial_steps_per_s_floor": peak * 1e9 / ((sample_flops + update_flops) / steps),
         }

@@ -32,6 +32,8 @@ class LearnerSettings:
     # local action likelihoods (`learners.trajectory_diversity`).
     trajectory_diversity: float = 0.0
     trajectory_discount: float = 0.5
+    # The dtype of the learner's matrix products (`PPOSettings.precision`): "float32", or "bfloat16" under autocast.
+    precision: str = "float32"
 
     def config_dict(self) -> dict[str, Any]:
         """The `learner_config_dict` that carries these settings to every learner."""

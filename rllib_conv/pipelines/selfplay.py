@@ -174,7 +174,9 @@ def build_selfplay_config(cfg: SelfPlayConfig) -> PPOConfig:
         # serve the seats in the order of a set of agent IDs, which follows the string hash seed.
         .learners(
             learner_class=MarginalPPOLearner,
-            learner_config_dict=LearnerSettings(adam_eps=cfg.ppo.adam_eps, shuffle_seeds=shuffle_seeds).config_dict(),
+            learner_config_dict=LearnerSettings(
+                adam_eps=cfg.ppo.adam_eps, shuffle_seeds=shuffle_seeds, precision=cfg.ppo.precision
+            ).config_dict(),
         )
     )
 
@@ -208,6 +210,7 @@ def build_joint_config(cfg: SelfPlayConfig) -> PPOConfig:
             populations.setdefault(base, []).append(mid)
     settings = LearnerSettings(
         adam_eps=cfg.ppo.adam_eps,
+        precision=cfg.ppo.precision,
         shuffle_seeds=shuffle_seeds,
         population_entropy=float(cfg.population_entropy or 0.0),
         populations=populations,

@@ -92,6 +92,10 @@ class PPOSettings(Strict):
     rollout_per_partner: PositiveInt | None = None
     minibatch_size: PositiveInt | None = None
     num_epochs: PositiveInt | None = None
+    # Not in the paper: "bfloat16" runs the learner's forward and loss under torch's autocast (matrix products in
+    # bfloat16; weights, gradients' accumulation, Adam and the loss's reductions stay float32). ~1.5x a Hanabi update on
+    # a CPU with AMX (benchmarks/learner_update.py --precision); slower on CPUs without bfloat16 units. Sampling stays float32.
+    precision: Literal["float32", "bfloat16"] = LearnerSettings.precision
 
 
 class RunSettings(Strict):

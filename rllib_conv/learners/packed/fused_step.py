@@ -23,11 +23,17 @@ gradients are clipped as they would be alone (Adam itself is elementwise).
 
 from __future__ import annotations
 
+import warnings
 from collections import defaultdict
 
 import torch
 from torch.optim.adam import Adam, adam
 from torch.optim.optimizer import _get_scalar_dtype
+
+# A parameter here can be a strided, non-dense view of its flat buffer, and `bind_grads` gives its gradient the same
+# strides: backward accumulates into it in place all the same, but torch warns (once per process) that this layout is
+# not the contiguous one it would have allocated. Expected here, so not shown.
+warnings.filterwarnings("ignore", message="grad and param do not obey the gradient layout contract")
 
 # RLlib's clip: coefficient = clip / max(norm + 1e-6, clip), and per-tensor norms capped like this.
 _EPS = 1e-6

@@ -100,6 +100,12 @@ class FusedUpdateLearner(PPOTorchLearner):
         """A permutation of `n` rows for `module_id`: from its own generator if it has one, else NumPy's global RNG."""
         return self.permuters(module_id, n) if module_id in self.settings.shuffle_seeds else global_permute(module_id, n)
 
+    def _autocast(self) -> torch.autocast:
+        """The forward and loss's precision (`LearnerSettings.precision`): bfloat16 matrix products under autocast, or float32."""
+        return torch.autocast(
+            torch.device(self._device).type, dtype=torch.bfloat16, enabled=self.settings.precision == "bfloat16"
+        )
+
     @property
     def stacked(self) -> bool:
         """Whether the module is a stack of replica egos (else plain RLlib modules, e.g. self-play seats)."""
@@ -269,19 +275,20 @@ class FusedUpdateLearner(PPOTorchLearner):
         steps = list(plan)
         for i, rows in enumerate(steps):
             minibatch = {mid: {c: _take(v, rows[mid]) for c, v in cols.items()} for mid, cols in data.items()}
-            fwd_out = self.module.forward_train(minibatch)
-            terms = {}
-            for mid, mb in minibatch.items():
-                out = fwd_out[mid]
-                values = self.module[mid].compute_values(mb, embeddings=out.get(Columns.EMBEDDINGS))
-                terms[mid] = ppo_loss(out[Columns.ACTION_DIST_INPUTS], values, mb[Columns.ACTIONS], mb, **settings[mid])
-            extra = {}
-            if self.loss_reads_plain_terms:
-                extra = self.plain_terms(minibatch)
-                logged.append({key: t.detach() for key, t in extra.items()})
-            elif i == len(steps) - 1:  # terms outside the loss are only logged: from the last minibatch, no gradient
-                with torch.no_grad():
-                    logged.append(self.plain_terms(minibatch))
+            with self._autocast():
+                fwd_out = self.module.forward_train(minibatch)
+                terms = {}
+                for mid, mb in minibatch.items():
+                    out = fwd_out[mid]
+                    values = self.module[mid].compute_values(mb, embeddings=out.get(Columns.EMBEDDINGS))
+                    terms[mid] = ppo_loss(out[Columns.ACTION_DIST_INPUTS], values, mb[Columns.ACTIONS], mb, **settings[mid])
+                extra = {}
+                if self.loss_reads_plain_terms:
+                    extra = self.plain_terms(minibatch)
+                    logged.append({key: t.detach() for key, t in extra.items()})
+                elif i == len(steps) - 1:  # terms outside the loss are only logged: from the last minibatch, no gradient
+                    with torch.no_grad():
+                        logged.append(self.plain_terms(minibatch))
             self._backward_and_step(sum(t.total for t in terms.values()) + sum(self.plain_loss(extra).values()))
         self._log_terms(terms)
         for key in logged[0] if logged else ():
@@ -323,12 +330,13 @@ class FusedUpdateLearner(PPOTorchLearner):
             for mid, r in rows.items():
                 idx[cell[mid]] = r
             valid = present.unsqueeze(-1).expand(k, h, b)
-            terms, extra, total = self._minibatch_loss(obs, mask, columns, idx, valid, settings)
-            if self.loss_reads_all_heads:
-                logged.append({key: t.detach() for key, t in extra.items()})
-            elif i == len(steps) - 1:  # terms outside the loss are only logged: from the last minibatch, no gradient
-                with torch.no_grad():
-                    logged.append(self.stack_terms(self.module.forward_stacked(*_gather(idx, obs, mask), valid)))
+            with self._autocast():
+                terms, extra, total = self._minibatch_loss(obs, mask, columns, idx, valid, settings)
+                if self.loss_reads_all_heads:
+                    logged.append({key: t.detach() for key, t in extra.items()})
+                elif i == len(steps) - 1:  # terms outside the loss are only logged: from the last minibatch, no gradient
+                    with torch.no_grad():
+                        logged.append(self.stack_terms(self.module.forward_stacked(*_gather(idx, obs, mask), valid)))
             self._backward_and_step(total)
         self._log_terms(
             {
