@@ -14,7 +14,8 @@ per task. A set is a YAML manifest:
     partners:                          # scripted partners: a kind with its parameters
       - {name: conv-low-high, kind: bandit_convention, params: {arms: [0, 5, 2, 3]}}
     populations:                       # members of a population: a built-in name or a population folder
-      - {population: populations/bandit-s2-selfplay, split: test}   # optional `members: [names]`
+      - {population: populations/bandit-s2-selfplay, split: test}   # optional `members: [names]`, and
+        # `made_by`: the command that trains a folder the set needs (said when the folder is missing)
     bounds: {conv-low-high: 1.0}       # only where the game has no exact best-response bound (below)
     bounds_by: how the bounds were measured (the commands)
 
@@ -69,6 +70,7 @@ class SetPopulation(_Manifest):
     population: str = Field(min_length=1)
     split: Split | None = None  # None: both splits
     members: list[str] | None = None  # None: every member of the split
+    made_by: str = ""  # the command that makes the population (a trained one the set needs but does not ship)
 
 
 class EvaluationSet(_Manifest):
@@ -145,6 +147,10 @@ class EvaluationSet(_Manifest):
 
     def _members(self, ref: SetPopulation) -> list[PartnerEntry]:
         target = self._target(ref)
+        if ref.made_by and not is_builtin(target) and not Path(target).exists():
+            raise ValueError(
+                f"{self._where()}: population {ref.population!r} does not exist yet: run `{ref.made_by.strip()}` first"
+            )
         try:
             pop = get(target)
         except ValueError as exc:

@@ -26,10 +26,11 @@ BOUNDS = {
 }
 
 
-def test_every_game_with_an_exact_bound_lbf_and_overcooked_ship_both_sets_and_nothing_else_is_shipped() -> None:
+def test_every_game_with_an_exact_bound_lbf_overcooked_and_hanabi_ship_both_sets_and_nothing_else_is_shipped() -> None:
     # Level-Based Foraging and Overcooked have no exact bound: their sets declare trained ones
-    # (tests/pipelines/test_evaluate_k_seats.py; Overcooked's need the human proxies, tests below).
-    shipped = (*GAMES, "lbf", "overcooked")
+    # (tests/pipelines/test_evaluate_k_seats.py; Overcooked's need the human proxies, tests below); Hanabi's declare
+    # the game's maximum and need a self-play population (tests below).
+    shipped = (*GAMES, "lbf", "overcooked", "hanabi")
     assert evaluation_sets() == sorted(f"{g}_{r}.yaml" for g in shipped for r in ROLES)
     for game in shipped:
         for role in ROLES:
@@ -102,8 +103,8 @@ def test_a_bad_set_names_its_file_and_the_problem(tmp_path, data, message) -> No
 
 
 def test_unknown_sets_and_unreadable_files_are_refused(tmp_path) -> None:
-    with pytest.raises(ValueError, match="no shipped heldout set for game 'hanabi'"):
-        find_set("heldout", "hanabi")
+    with pytest.raises(ValueError, match="no shipped heldout set for game 'chess'"):
+        find_set("heldout", "chess")
     with pytest.raises(ValueError, match="'nope' is neither heldout nor validation nor an evaluation-set manifest"):
         find_set("nope", "bandit")
     (tmp_path / "bad.yaml").write_text("name: [1\n")
@@ -165,3 +166,35 @@ def test_overcookeds_sets_hold_new_conventions_and_human_proxies_apart_and_decla
     assert sum(n.startswith("overcooked-cramped_room-hproxy/") for n in names) == 3 and len(names) == 6
     for role, pop in (("heldout", heldout), ("validation", validation)):
         assert set(shipped_set("overcooked", role).bounds) == {e.name for e in pop.partners}, role
+
+
+def _hanabi_stand_in(folder: Path) -> None:
+    """A population where Hanabi's sets look for their self-play one: its members' names and splits, random players."""
+    members = [(f"sp{k:02d}", "train" if k < 4 else "test") for k in range(8)]
+    manifest = {
+        "name": "hanabi-eval-selfplay",
+        "env": "hanabi",
+        "partner_agent": "player_1",
+        "partners": [
+            {"name": n, "kind": "random_legal", "params": {"seed": 50 + i}, "split": split}
+            for i, (n, split) in enumerate(members)
+        ],
+    }
+    pop = partners.Population.model_validate(manifest)
+    pop.save(folder / "populations" / "hanabi-eval-selfplay" / "population.json")
+
+
+def test_hanabis_sets_say_what_to_train_then_hold_disjoint_halves_each_member_bounded(tmp_path, monkeypatch) -> None:
+    monkeypatch.chdir(tmp_path)
+    made_by = "rllib-conv partners train tune_configs/selfplay_hanabi.yaml --set name=hanabi-eval-selfplay --set seed=1000"
+    for role in ROLES:
+        with pytest.raises(ValueError, match=f"does not exist yet: run `{made_by}` first"):
+            shipped_set("hanabi", role).resolve()
+    _hanabi_stand_in(tmp_path)
+    heldout, validation = (shipped_set("hanabi", role) for role in ("heldout", "validation"))
+    held, valid = heldout.resolve(), validation.resolve()
+    assert [e.name for e in held.partners] == ["random-1"] + [f"hanabi-eval-selfplay/sp0{k}" for k in range(4, 8)]
+    assert [e.name for e in valid.partners] == ["rule"] + [f"hanabi-eval-selfplay/sp0{k}" for k in range(4)]
+    assert disjoint(held, valid) and disjoint(valid, held)
+    for eval_set, pop in ((heldout, held), (validation, valid)):
+        assert eval_set.bounds == {e.name: envs.game("hanabi").max_score for e in pop.partners}
