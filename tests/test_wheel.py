@@ -71,4 +71,4 @@ def test_configs_plans_and_the_user_study_table_load_from_the_wheel(installed: P
     assert "bandit plan populations 4" in out.stdout
     # 23 pairs x 2 tasks x 3 contexts x 2 tries (1 and 5) in the paper's table.
     assert "user study rows 276" in out.stdout and str(ROOT) not in out.stdout
-    assert "evaluation sets 8 blocks held-out 6" in out.stdout  # bandit, blocks, lbf, overcooked: heldout and validation
+    assert "evaluation sets 10 blocks held-out 6" in out.stdout  # bandit, blocks, hanabi, lbf, overcooked: heldout and validation
