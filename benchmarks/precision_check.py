@@ -16,38 +16,34 @@ turn on. Writes `benchmarks/results/<NAME>.json` (default `precision_check`).
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 import pandas as pd
 
-from analysis.loaders import load_trial_summaries, trial_dirs, trial_info
+from analysis.loaders import CONFIG_PREFIX, load_trial_summaries, trial_dirs
 from analysis.summaries import mean_ci
 from benchmarks._common import write_result
-from rllib_conv.common.run_folders import EVAL_FILE
+from rllib_conv.common.run_folders import experiment_of
 
 SIDES = ("float32", "bfloat16")
 
 
 def seed_rows(game_dir: Path, experiment: str) -> pd.DataFrame:
     """One row per seed of `experiment` under `game_dir`: its final evaluation per partner and its last training return."""
-    trials = [t for t in trial_dirs(game_dir) if trial_info(t)["experiment"] == experiment]
+    trials = [t for t in trial_dirs(game_dir) if experiment_of(t).name == experiment]
     if not trials:
         raise SystemExit(f"no trained ego of experiment {experiment!r} under {game_dir}/runs")
-    last = load_trial_summaries(trials).set_index("run")
-    rows = []
-    for trial in trials:
-        evals = json.loads((trial / EVAL_FILE).read_text())
-        per_partner = {k.split("/", 2)[2]: v for k, v in evals.items() if k.startswith("eval/mean/")}
-        rows.append(
-            {
-                "seed": int(trial_info(trial)["seed"]),
-                "eval_mean": sum(per_partner.values()) / len(per_partner),
-                **{f"eval/{p}": v for p, v in per_partner.items()},
-                "train_return_mean": float(last.loc[str(trial), "return_mean"]),
-            }
-        )
-    return pd.DataFrame(rows).set_index("seed").sort_index()
+    summaries = load_trial_summaries(trials)  # config, last logged iteration and eval.json, one row per seed
+    evals = [c for c in summaries.columns if c.startswith("eval/mean/")]
+    rows = pd.DataFrame(
+        {
+            "seed": summaries[CONFIG_PREFIX + "seed"].astype(int),
+            "eval_mean": summaries[evals].mean(axis=1),
+            **{f"eval/{c.split('/', 2)[2]}": summaries[c] for c in evals},
+            "train_return_mean": summaries["return_mean"].astype(float),
+        }
+    )
+    return rows.set_index("seed").sort_index()
 
 
 def compare(sides: dict[str, pd.DataFrame]) -> list[dict]:
