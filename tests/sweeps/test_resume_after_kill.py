@@ -21,7 +21,9 @@ import yaml
 from ray.tune.experiment.trial import Trial
 
 from rllib_conv.common.run_folders import RL_MODULE_DIR, checkpoints
+from rllib_conv.training.callbacks import CHECKPOINTED
 from rllib_conv.training.checkpoints import last_checkpoint
+from rllib_conv.training.surviving_checkpoint import TRIAL_METRICS_FILE
 from tests.sweeps.killing import kill_ray_instance, private_ray_tmp
 
 pytestmark = pytest.mark.slow  # every test here trains (RLlib, Tune or `rllib-conv` subprocesses)
@@ -72,10 +74,23 @@ def _prune_before_the_state_names_a_successor(storage: Path) -> Path:
     assert named, "Tune should have saved a state naming a checkpoint before the kill"
     folder, checkpoint = sorted(named.items())[-1]
     successor = checkpoint.with_name(f"checkpoint_{int(checkpoint.name.rsplit('_', 1)[1]) + 1:06d}")
-    if not successor.exists():  # the state named the newest: a copy plays the successor (same state, same counts)
+    if not _registered(successor):
+        # Tune prunes a checkpoint only after registering newer ones, and registering copies the logs
+        # (`KeepLogsAtCheckpoints`): a later checkpoint the driver had not registered yet cannot be what
+        # survives a prune. A copy of the named one plays the registered successor (same state, same counts).
+        shutil.rmtree(successor, ignore_errors=True)
         shutil.copytree(checkpoint, successor)
     shutil.rmtree(checkpoint)
     return storage / "sweep" / folder
+
+
+def _registered(checkpoint: Path) -> bool:
+    """Whether the driver registered `checkpoint`: the trial's logs kept at its last registered checkpoint reach it."""
+    logs = checkpoint.parent / f"progress.csv{CHECKPOINTED}"
+    if not (checkpoint / TRIAL_METRICS_FILE).is_file() or not logs.is_file():
+        return False
+    iteration = json.loads((checkpoint / TRIAL_METRICS_FILE).read_text())["training_iteration"]
+    return iteration <= pd.read_csv(logs)["training_iteration"].max()
 
 
 def _outcome(storage: Path) -> dict[float, dict]:
