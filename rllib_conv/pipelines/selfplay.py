@@ -71,7 +71,6 @@ from rllib_conv.common.seeds import module_sampling_seed, pair_seed, shuffle_see
 from rllib_conv.envs.replicated_game import ReplicatedGame, replicated_env_config
 from rllib_conv.envs.rllib_adapter import PettingZooMultiAgentEnv, RLlibGame, game_env_config
 from rllib_conv.learners.marginal_learner import MarginalPPOLearner
-from rllib_conv.learners.settings import LearnerSettings
 from rllib_conv.modules.multi import REPLICA_SEPARATOR, replica_id
 from rllib_conv.modules.task_module import TaskModule
 from rllib_conv.partners.episodes import play_episodes
@@ -174,9 +173,7 @@ def build_selfplay_config(cfg: SelfPlayConfig) -> PPOConfig:
         # serve the seats in the order of a set of agent IDs, which follows the string hash seed.
         .learners(
             learner_class=MarginalPPOLearner,
-            learner_config_dict=LearnerSettings(
-                adam_eps=cfg.ppo.adam_eps, shuffle_seeds=shuffle_seeds, precision=cfg.ppo.precision
-            ).config_dict(),
+            learner_config_dict=cfg.ppo.learner_settings(shuffle_seeds=shuffle_seeds).config_dict(),
         )
     )
 
@@ -208,9 +205,7 @@ def build_joint_config(cfg: SelfPlayConfig) -> PPOConfig:
             )
             shuffle_seeds[mid] = shuffle_seed(seed, base)
             populations.setdefault(base, []).append(mid)
-    settings = LearnerSettings(
-        adam_eps=cfg.ppo.adam_eps,
-        precision=cfg.ppo.precision,
+    settings = cfg.ppo.learner_settings(
         shuffle_seeds=shuffle_seeds,
         population_entropy=float(cfg.population_entropy or 0.0),
         populations=populations,

@@ -78,13 +78,8 @@ class ExperimentConfig(Strict):
 
     def learner_settings(self) -> LearnerSettings:
         """What the learner needs of this experiment: regulariser, head penalty, freezing, Adam."""
-        return LearnerSettings(
-            lam=self.lam,
-            freeze=tuple(self.freeze),
-            adam_eps=self.ppo.adam_eps,
-            z_lr_scale=self.z_lr_scale,
-            head_l2=self.head_l2,
-            precision=self.ppo.precision,
+        return self.ppo.learner_settings(
+            lam=self.lam, freeze=tuple(self.freeze), z_lr_scale=self.z_lr_scale, head_l2=self.head_l2
         )
 
 

@@ -97,6 +97,10 @@ class PPOSettings(Strict):
     # a CPU with AMX (benchmarks/learner_update.py --precision); slower on CPUs without bfloat16 units. Sampling stays float32.
     precision: Literal["float32", "bfloat16"] = LearnerSettings.precision
 
+    def learner_settings(self, **settings: Any) -> LearnerSettings:
+        """The learner's settings for these PPO hyperparameters (Adam's epsilon, precision), plus `settings`."""
+        return LearnerSettings(adam_eps=self.adam_eps, precision=self.precision, **settings)
+
 
 class RunSettings(Strict):
     """How long and on what: env steps, env runners, vectorised sub-envs, checkpoints, fault tolerance.
