@@ -11,6 +11,11 @@ per metric, each side's mean over seeds with its 95% t-interval and the paired d
 bfloat16 - float32 over the seeds both hold (the seed is the unit). Same science when every
 paired interval holds 0 or, failing that, the difference is smaller than what the claims
 turn on. Writes `benchmarks/results/<NAME>.json` (default `precision_check`).
+
+`--adaptation` adds the egos adapted to new partners: each side's `adaptation/<experiment>.csv`
+under its game folder (the bfloat16 egos adapted with `rllib-conv adapt ... --name
+<experiment>`, which adapts in their precision), per seed the mean over its new partners of
+the curve's AUC, its step-0 and last return, and the gain over not adapting (AUC - step 0).
 """
 
 from __future__ import annotations
@@ -20,8 +25,8 @@ from pathlib import Path
 
 import pandas as pd
 
-from analysis.loaders import CONFIG_PREFIX, load_trial_summaries, trial_dirs
-from analysis.summaries import mean_ci
+from analysis.loaders import CONFIG_PREFIX, load_adaptation, load_trial_summaries, trial_dirs
+from analysis.summaries import adaptation_auc, mean_ci
 from benchmarks._common import write_result
 from rllib_conv.common.run_folders import experiment_of
 
@@ -44,6 +49,19 @@ def seed_rows(game_dir: Path, experiment: str) -> pd.DataFrame:
         }
     )
     return rows.set_index("seed").sort_index()
+
+
+def adaptation_rows(game_dir: Path, experiment: str) -> pd.DataFrame:
+    """One row per seed of `experiment`'s adaptation curves under `game_dir`: means over its new partners of AUC, start, end, gain."""
+    curves = load_adaptation(game_dir)
+    population, _, label = experiment.partition("__")
+    curves = curves[(curves["population"] == population) & (curves["label"] == label)]
+    if curves.empty:
+        raise SystemExit(f"no adaptation curves of experiment {experiment!r} under {game_dir}/adaptation")
+    auc = adaptation_auc(curves).assign(gain=lambda d: d["auc"] - d["start"])
+    per_seed = auc.groupby("seed")[["auc", "start", "end", "gain"]].mean()
+    per_seed.index = per_seed.index.astype(int)
+    return per_seed.add_prefix("adapt_").sort_index()
 
 
 def compare(sides: dict[str, pd.DataFrame]) -> list[dict]:
@@ -69,12 +87,13 @@ def main() -> None:
     parser.add_argument("float32_experiment", help="their experiment, e.g. hanabi-selfplay__modular-lam0.5")
     parser.add_argument("bfloat16_dir", type=Path, help="the game folder of the bfloat16 egos (its runs/ holds them)")
     parser.add_argument("bfloat16_experiment", help="their experiment, e.g. hanabi-selfplay__modular-lam0.5-bf16")
+    parser.add_argument("--adaptation", action="store_true", help="also compare the egos' adaptation curves (see above)")
     parser.add_argument("--name", default="precision_check")
     args = parser.parse_args()
-    sides = {
-        "float32": seed_rows(args.float32_dir, args.float32_experiment),
-        "bfloat16": seed_rows(args.bfloat16_dir, args.bfloat16_experiment),
-    }
+    sides = {s: seed_rows(getattr(args, f"{s}_dir"), getattr(args, f"{s}_experiment")) for s in SIDES}
+    if args.adaptation:
+        for s in SIDES:
+            sides[s] = sides[s].join(adaptation_rows(getattr(args, f"{s}_dir"), getattr(args, f"{s}_experiment")))
     rows = compare(sides)
     table = pd.DataFrame(
         [
