@@ -42,6 +42,7 @@ from rllib_conv.common.methods import (  # noqa: E402
     PICKED,
     PPO_BC,
     SCRATCH,
+    SEAT_HEADS,
 )
 from rllib_conv.common.methods import LABELS as LABEL_ORDER  # noqa: E402  (methods in the order of the paper's legends)
 
@@ -60,6 +61,7 @@ LABEL_STYLES: dict[str, tuple[str, str | tuple]] = {
     LAM03: ("#882255", (0, (3, 1, 1, 1))),  # wine, dash-dot
     LOW_Z: ("#332288", (0, (6, 1.5))),  # indigo, long dashes (dots read as from scratch's black)
     HEAD_PENALTY: ("#44AA99", (0, (5, 1, 1, 1, 1, 1))),  # teal, dash-dot-dot (not in the paper)
+    SEAT_HEADS: ("#EE3377", (0, (1, 2, 4, 2))),  # Tol's vibrant magenta, dot-dash: a head per seat and partner (k seats)
     PICKED: ("#999933", (0, (8, 2))),  # olive, long dashes (not in the paper)
     HEAD_PENALTY_PICKED: ("#888888", (0, (8, 2, 1, 2))),  # grey, long dash-dot (not in the paper)
     GUARDED: ("#AA4499", (0, (2, 2))),  # purple, short dashes: ours, its fine-tuning guarded (not in the paper)

@@ -38,6 +38,7 @@ from rllib_conv.common.methods import (
     PICKED,
     PPO_BC,
     SCRATCH,
+    SEAT_HEADS,
 )
 
 
@@ -95,6 +96,7 @@ LABEL_NAMES: dict[str, str] = {
     CONTROL_COUNTS: "control: the planner against the partner's counted moves",
     CONTROL_PRIOR: "control: the planner against the frozen prior",
     LOW_Z: "ours λ=0.5, low-dim z",
+    SEAT_HEADS: "ours λ=0.5, a head per seat and partner",
     "agg": "BaselineAgg",
     "no_task_logits": "BaselineModular",
     "maml": "First-Order MAML",

@@ -153,6 +153,7 @@ LAM0 = lam_label(0.0)  # ours without the regulariser (fig:marginals)
 LAM03 = lam_label(0.3)
 LOW_Z = lam_label(PAPER_LAM, "lowz")  # ours with a low-dimensional z
 HEAD_PENALTY = f"{PAPER_METHOD}-hl0.01"  # ours with the head penalty head_l2 0.01 (not in the paper)
+SEAT_HEADS = f"{PAPER_METHOD}-seat"  # ours with a head per partner seat and partner, `model.heads: seat` (k seats)
 PICKED = f"{PAPER_METHOD}-pick"  # ours, adapting from a picked head (not in the paper)
 HEAD_PENALTY_PICKED = f"{HEAD_PENALTY}-pick"
 BC_TRAINED = f"{PAPER_METHOD}-bc"  # ours trained with Overcooked's BC proxies, as PPO_BC is (not in the paper)
@@ -184,6 +185,7 @@ BASELINES: tuple[str, ...] = ("agg", "no_task_logits", "maml")  # the paper's ba
 # Variants beyond the paper's: the reports list them apart from the paper's claims.
 EXTENSIONS: tuple[str, ...] = (
     HEAD_PENALTY,
+    SEAT_HEADS,
     PICKED,
     HEAD_PENALTY_PICKED,
     GUARDED,

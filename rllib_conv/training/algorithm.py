@@ -104,6 +104,9 @@ def module_specs(setup: EgoSetup, load: dict[str, str] | None = None, seed: int 
     exp = setup.exp
     ego_obs, ego_act, p_obs, p_act = _spaces(setup)
     task_config, head_config = _module_configs(setup)
+    if setup.seat_heads:  # each team head is saved as the sum of its seats' heads: one head as wide as all of them
+        head_config = {**head_config, "hidden": head_config["hidden"] * len(setup.partner_agents)}
+        head_config["z_dim"] = task_config["z_dim"] or task_config["hidden"]
     seeded = lambda mid: {} if seed is None else {"init_seed": stream_seed(seed, mid)}  # noqa: E731
     specs = {
         TASK_ID: RLModuleSpec(
@@ -173,11 +176,12 @@ def stacked_specs(replicas: list[Replica]) -> dict[str, RLModuleSpec]:
     stack_config = {
         "replicas": len(replicas),
         "heads": len(first.head_ids),
+        "head_members": first.head_members,
         "task": task_config,
         "head": head_config,
         # The seeds a replica's plain modules get (`module_specs(seed=...)`): it starts as it would alone.
         "task_seeds": [stream_seed(rep.own_seed, TASK_ID) for rep in replicas],
-        "head_seeds": [[stream_seed(rep.own_seed, mid) for mid in rep.setup.head_ids] for rep in replicas],
+        "head_seeds": [[stream_seed(rep.own_seed, mid) for mid in rep.setup.weight_heads] for rep in replicas],
         "sample_seeds": [sampling_seed(rep.own_seed) for rep in replicas],
         # A game that can list its ego's every state has few distinct ones: heads run once per distinct observation.
         "few_situations": envs.game(first.population.env).states is not None,

@@ -4,6 +4,11 @@ In a game of k seats the population names the k-1 partner seats; every episode s
 training partner in each (`modules.mapping`), and the modular ego has a head per team of
 partners in seat order (`ego@a+b`: P**(k-1) heads for P training partners). Adapting to a new
 team fixes it (`team`): every episode seats that team, and the ego has its one head.
+
+With `model.heads: seat` the weights behind the team heads are one head per (partner seat,
+partner) instead, P*(k-1) of them (`weight_heads`): a team's logits and values add those of
+its seats' heads (`head_members`). The team heads stay what agents map to and what is saved
+(each as one plain head holding the sum, `EgoStack.head_state`).
 """
 
 from __future__ import annotations
@@ -45,6 +50,34 @@ class EgoSetup:
     def head_ids(self) -> list[str]:
         """The ego heads being trained (one per training partner, or team of them; one for BaselineAgg)."""
         return [AGG_HEAD_ID] if method(self.exp.method).single_head else [ego_id(team_name(t)) for t in self.teams]
+
+    @property
+    def seat_heads(self) -> bool:
+        """Whether the team heads are sums of per-(seat, partner) heads (`model.heads: seat`, several partner seats, a head per partner)."""
+        return self.exp.model.heads == "seat" and len(self.partner_agents) > 1 and not method(self.exp.method).single_head
+
+    @property
+    def weight_heads(self) -> list[str]:
+        """The heads that hold weights, in stack order: the team heads, or with `seat_heads` one per (seat, partner) of the teams.
+
+        A seat head is named `ego@<seat>=<partner>` (the name seeds its initial weights).
+        """
+        if not self.seat_heads:
+            return self.head_ids
+        pairs = [(seat, name) for seat_index, seat in enumerate(self.partner_agents) for name in self._seat_partners(seat_index)]
+        return [ego_id(f"{seat}={name}") for seat, name in pairs]
+
+    @property
+    def head_members(self) -> list[list[int]]:
+        """Per team head (`head_ids` order), the `weight_heads` whose outputs it adds: itself, or one per partner seat."""
+        if not self.seat_heads:
+            return [[h] for h in range(len(self.head_ids))]
+        index = {mid: i for i, mid in enumerate(self.weight_heads)}
+        return [[index[ego_id(f"{seat}={name}")] for seat, name in zip(self.partner_agents, team)] for team in self.teams]
+
+    def _seat_partners(self, seat_index: int) -> list[str]:
+        """The partners that sit in partner seat `seat_index` in some team, in order of first appearance."""
+        return list(dict.fromkeys(team[seat_index] for team in self.teams))
 
     def head_for(self, partner_name: str | tuple[str, ...]) -> str:
         """The ego head that plays with `partner_name` (a team: one name per partner seat; the shared head for single-network methods)."""

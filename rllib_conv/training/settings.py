@@ -72,10 +72,16 @@ EntropyCoeff = Annotated[
 
 
 class ModelSettings(Strict):
-    """Network sizes: every layer of both modules has `hidden` units; z has `z_dim` (default hidden)."""
+    """Network sizes: every layer of both modules has `hidden` units; z has `z_dim` (default hidden); the heads' layout."""
 
     hidden: PositiveInt | None = None
     z_dim: PositiveInt | None = None
+    heads: Literal["team", "seat"] = Field(
+        "team",
+        description="in a game of more than two seats, the modular ego's heads: one per team of training partners "
+        "(team: P**(k-1) heads), or one per partner seat and partner whose logits and values add (seat: P*(k-1) heads, "
+        "and a new team's head starts as the sum of fresh seat heads); the same in a game of two seats",
+    )
 
 
 class PPOSettings(Strict):

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import torch
 
-from rllib_conv.modules.packed.ego_stack import EgoStack, pad_rows, unpad
+from rllib_conv.modules.packed.ego_stack import EgoStack, pad_rows, summed_head_state, unpad
 from rllib_conv.modules.partner_head import PartnerHeadModule
 from rllib_conv.modules.task_module import TaskModule
 
@@ -24,14 +24,17 @@ HEAD_SEEDS = [[21, 22, 23], [31, 32, 33]]  # K = 2 replicas, H = 3 heads each
 FLOAT_MIN = torch.finfo(torch.float32).min
 
 
-def stack(use_task_logits: bool = True, sample_seeds: tuple[int, ...] = (5, 6)) -> EgoStack:
+def stack(
+    use_task_logits: bool = True, sample_seeds: tuple[int, ...] = (5, 6), members: list[list[int]] | None = None
+) -> EgoStack:
     head = {"hidden": HIDDEN, "use_task_logits": use_task_logits}
     return EgoStack(
         observation_space=OBS_SPACE,
         action_space=ACT_SPACE,
         model_config={
             "replicas": len(TASK_SEEDS),
-            "heads": len(HEAD_SEEDS[0]),
+            "heads": len(members or HEAD_SEEDS[0]),
+            "head_members": members,
             "task": {"hidden": HIDDEN},
             "head": head,
             "task_seeds": TASK_SEEDS,
@@ -128,6 +131,61 @@ def test_head_values_pick_heads_by_flat_index() -> None:
     picked = ego.head_values(z, heads=torch.tensor([5, 0]))  # replica 1 head 2; replica 0 head 0
     torch.testing.assert_close(picked[0], plain_head(HEAD_SEEDS[1][2]).vf(z[0]).squeeze(-1))
     torch.testing.assert_close(picked[1], plain_head(HEAD_SEEDS[0][0]).vf(z[1]).squeeze(-1))
+
+
+# Seat heads (`model.heads: seat`): 4 team heads over the 3 weight heads, two seats each (the last repeats one).
+MEMBERS = [[0, 1], [0, 2], [1, 2], [2, 2]]
+
+
+@pytest.mark.parametrize("use_task_logits", [True, False])
+def test_a_head_of_several_members_adds_their_outputs(use_task_logits: bool) -> None:
+    ego = stack(use_task_logits, members=MEMBERS)
+    obs = rows()
+    task = ego.task_forward(obs, None)
+    head_out = ego.head_outputs(task.z)  # [K, 4, N, A]
+    values = ego.head_values(task.z.repeat_interleave(4, dim=0)).reshape(2, 4, -1)
+    assert head_out.shape == (2, 4, 7, ACTIONS) and [p.shape[:2] for p in ego.head_parameters()] == [(2, 3)] * 12
+    for r in range(2):
+        plain = [plain_head(seed, use_task_logits) for seed in HEAD_SEEDS[r]]
+        for h, (a, b) in enumerate(MEMBERS):
+            torch.testing.assert_close(head_out[r, h], plain[a].pi(task.z[r]) + plain[b].pi(task.z[r]))
+            torch.testing.assert_close(values[r, h], (plain[a].vf(task.z[r]) + plain[b].vf(task.z[r])).squeeze(-1))
+    picked = ego.head_values(task.z, heads=torch.tensor([7, 1]))  # replica 1 head 3; replica 0 head 1
+    torch.testing.assert_close(picked[0], 2 * plain_head(HEAD_SEEDS[1][2]).vf(task.z[0]).squeeze(-1))
+    want = plain_head(HEAD_SEEDS[0][0]).vf(task.z[1]) + plain_head(HEAD_SEEDS[0][2]).vf(task.z[1])
+    torch.testing.assert_close(picked[1], want.squeeze(-1))
+
+
+def test_a_head_of_several_members_is_saved_as_one_plain_head_as_wide_as_all_of_them() -> None:
+    ego = stack(members=MEMBERS)
+    z = ego.task_forward(rows(), None).z
+    head_out = ego.head_outputs(z)
+    values = ego.head_values(z.repeat_interleave(4, dim=0)).reshape(2, 4, -1)
+    for r in range(2):
+        for h in range(4):
+            wide = PartnerHeadModule(
+                observation_space=OBS_SPACE, action_space=ACT_SPACE, model_config={"hidden": 2 * HIDDEN, "z_dim": HIDDEN}
+            )
+            wide.load_state_dict(ego.head_state(r, h))
+            torch.testing.assert_close(wide.pi(z[r]), head_out[r, h])
+            torch.testing.assert_close(wide.vf(z[r]).squeeze(-1), values[r, h])
+    with pytest.raises(ValueError, match="does not split"):
+        ego.load_head(0, 0, ego.head_state(0, 0))
+
+
+def test_summing_one_head_state_returns_it_and_two_are_block_diagonal() -> None:
+    one, two = plain_head(21).state_dict(), plain_head(22).state_dict()
+    assert_same_state(summed_head_state([one]), one)
+    wide = summed_head_state([one, two])
+    assert wide["pi.2.weight"].shape == (2 * HIDDEN, 2 * HIDDEN)
+    assert (wide["pi.2.weight"][:HIDDEN, HIDDEN:] == 0).all() and (wide["pi.2.weight"][HIDDEN:, :HIDDEN] == 0).all()
+    torch.testing.assert_close(wide["vf.4.bias"], one["vf.4.bias"] + two["vf.4.bias"])
+
+
+@pytest.mark.parametrize("members", [[[0, 1], [2]], [[0, 3]]])
+def test_head_members_that_differ_in_size_or_name_no_weight_head_are_refused(members: list[list[int]]) -> None:
+    with pytest.raises(ValueError, match="head_members"):
+        stack(members=members)
 
 
 def test_zero_weights_give_the_hand_computed_outputs() -> None:

@@ -16,6 +16,13 @@ it would alone.
 
 The module has no agent mapped to it (it is the `stack` module of `StackedEgoMultiRLModule`);
 `HeadView`s, one per (replica, head), are what agents map to.
+
+The H heads the views see may add the outputs of other heads that hold the weights
+(`head_members`: the ego with one head per partner seat and partner, `model.heads: seat`):
+head h's logits and values are then the sum over its S members, which are what trains.
+`head_state` hands such a head out as one plain head of S times the width whose layers are
+its members' side by side (`summed_head_state`): the same outputs, so everything that reads
+a saved ego reads it unchanged.
 """
 
 from __future__ import annotations
@@ -48,6 +55,27 @@ def _linear(x: torch.Tensor, weight: torch.Tensor, bias: torch.Tensor) -> torch.
     return torch.baddbmm(bias.unsqueeze(1), x, weight.transpose(1, 2))
 
 
+def summed_head_state(states: list[dict[str, torch.Tensor]]) -> dict[str, torch.Tensor]:
+    """One `PartnerHeadModule` state, `hidden` S times the members', whose outputs are the sum of the S heads `states`.
+
+    Each MLP's first layer stacks the members' rows (all read z), the middle ones are
+    block-diagonal (ReLU acts per unit, so the blocks stay apart) and the last one puts the
+    members' columns side by side with their biases added.
+    """
+    if len(states) == 1:
+        return dict(states[0])
+    out = {}
+    for first, *middle, last in (HEAD_POLICY, HEAD_VALUE):
+        out[f"{first}.weight"] = torch.cat([s[f"{first}.weight"] for s in states])
+        for layer in middle:
+            out[f"{layer}.weight"] = torch.block_diag(*[s[f"{layer}.weight"] for s in states])
+        for layer in (first, *middle):
+            out[f"{layer}.bias"] = torch.cat([s[f"{layer}.bias"] for s in states])
+        out[f"{last}.weight"] = torch.cat([s[f"{last}.weight"] for s in states], dim=1)
+        out[f"{last}.bias"] = torch.stack([s[f"{last}.bias"] for s in states]).sum(0)
+    return out
+
+
 class StackedTask(NamedTuple):
     """The task modules' output on rows [K, N]: latent z, masked task logits, task value."""
 
@@ -61,14 +89,32 @@ class EgoStack(TorchRLModule):
 
     `model_config`: `replicas` (K), `heads` (H), `task` and `head` (the plain modules'
     model configs, e.g. sizes and `oracle`/`use_task_logits`), `task_seeds` ([K] init
-    seeds), `head_seeds` ([K][H] init seeds), `sample_seeds` ([K]: the generator each
-    replica's exploration draws its actions from), `few_situations` (default False: the
-    game has few distinct observations, so training forwards run once per distinct one).
+    seeds), `head_seeds` ([K][W] init seeds of the W heads holding weights), `head_members`
+    (per head, the S of the W it adds; default: head h is weight head h), `sample_seeds`
+    ([K]: the generator each replica's exploration draws its actions from), `few_situations`
+    (default False: the game has few distinct observations, so training forwards run once per
+    distinct one).
     """
 
     def setup(self) -> None:
         cfg = self.model_config
         self.replicas, self.heads = int(cfg["replicas"]), int(cfg["heads"])
+        weight_heads = len(cfg["head_seeds"][0])
+        members = [list(m) for m in cfg.get("head_members") or [[h] for h in range(self.heads)]]
+        if (
+            len(members) != self.heads
+            or len({len(m) for m in members}) != 1
+            or not all(0 <= w < weight_heads for m in members for w in m)
+        ):
+            raise ValueError(
+                f"head_members must give each of the {self.heads} heads as many of the {weight_heads} weight heads; got {members}"
+            )
+        self.members, self.seats = members, len(members[0])
+        # Which weight heads (of all K x W) each of the K x H heads adds; None: head h is weight head h.
+        self._weights_of = None
+        if members != [[h] for h in range(weight_heads)]:
+            replica_offsets = torch.arange(self.replicas).view(-1, 1, 1) * weight_heads
+            self._weights_of = (replica_offsets + torch.tensor(members)).reshape(-1, self.seats)
         task_cfg, head_cfg = dict(cfg["task"]), dict(cfg["head"])
         self.use_task_logits = bool(head_cfg.get("use_task_logits", True))
         self.few_situations = bool(cfg.get("few_situations", False))
@@ -120,9 +166,12 @@ class EgoStack(TorchRLModule):
         }
 
     def head_state(self, replica: int, head: int) -> dict[str, torch.Tensor]:
-        """Head `head` of replica `replica`, as a `PartnerHeadModule` state dict."""
+        """Head `head` of replica `replica`, as a `PartnerHeadModule` state dict (the sum of its members: `summed_head_state`)."""
+        return summed_head_state([self._weight_head_state(replica, w) for w in self.members[head]])
+
+    def _weight_head_state(self, replica: int, weight_head: int) -> dict[str, torch.Tensor]:
         return {
-            f"{layer}.{part}": getattr(self, _name(kind, layer, part))[replica, head].detach().clone()
+            f"{layer}.{part}": getattr(self, _name(kind, layer, part))[replica, weight_head].detach().clone()
             for kind, layers in (("head_pi", HEAD_POLICY), ("head_vf", HEAD_VALUE))
             for layer in layers
             for part in ("weight", "bias")
@@ -137,7 +186,9 @@ class EgoStack(TorchRLModule):
 
     @torch.no_grad()
     def load_head(self, replica: int, head: int, state: dict[str, torch.Tensor]) -> None:
-        """Write a `PartnerHeadModule` state dict into head `head` of replica `replica` (in place)."""
+        """Write a `PartnerHeadModule` state dict into head `head` of replica `replica` (in place; a head of one member)."""
+        if self._weights_of is not None:
+            raise ValueError(f"head {head} adds weight heads {self.members[head]}: a plain head's state does not split into them")
         for kind, layers in (("head_pi", HEAD_POLICY), ("head_vf", HEAD_VALUE)):
             for layer in layers:
                 for part in ("weight", "bias"):
@@ -173,7 +224,19 @@ class EgoStack(TorchRLModule):
         return StackedTask(z, masked_logits(logits, mask), v.squeeze(-1))
 
     def _heads(self, kind: str, layers: tuple[str, ...], z: torch.Tensor, heads: torch.Tensor | None = None) -> torch.Tensor:
-        """Head MLPs `kind` on z [K*H or G, M, z]; `heads` [G] picks which (replica*H + head) each group is (default: all, in order)."""
+        """Head MLPs `kind` on z [K*H or G, M, z]; `heads` [G] picks which (replica*H + head) each group is (default: all, in order).
+
+        A head of several members (`head_members`) runs each of them on its rows and adds their outputs.
+        """
+        if self._weights_of is None:
+            return self._weight_heads(kind, layers, z, heads)
+        members = self._weights_of if heads is None else self._weights_of.index_select(0, heads)
+        g, m, d = z.shape
+        zz = z.unsqueeze(1).expand(g, self.seats, m, d).reshape(g * self.seats, m, d)
+        return self._weight_heads(kind, layers, zz, members.reshape(-1)).reshape(g, self.seats, m, -1).sum(1)
+
+    def _weight_heads(self, kind: str, layers: tuple[str, ...], z: torch.Tensor, heads: torch.Tensor | None) -> torch.Tensor:
+        """The weight heads' MLPs `kind` on z [G, M, z]; `heads` [G] picks which (replica*W + weight head) each group is (default: all)."""
         x = z
         for i, layer in enumerate(layers):
             w, b = getattr(self, _name(kind, layer, "weight")), getattr(self, _name(kind, layer, "bias"))

@@ -1,0 +1,68 @@
+"""The modular ego with one head per (partner seat, partner) (`model.heads: seat`) in a game of three seats: its layout,
+a tiny training run whose saved team heads are sums of seat heads, and its adaptation to a held-out team."""
+
+from __future__ import annotations
+
+import pandas as pd
+import pytest
+import torch
+import yaml
+
+from rllib_conv.cli import main
+from rllib_conv.common.config_files import checked
+from rllib_conv.common.run_folders import trial_folders
+from rllib_conv.pipelines.adapt import run_adaptations
+from rllib_conv.pipelines.adapt_config import AdaptConfig
+from rllib_conv.training.checkpoints import last_checkpoint
+from rllib_conv.training.ego_setup import resolve, setup_for
+from rllib_conv.training.evaluate import load_module
+from rllib_conv.training.experiment import ExperimentConfig
+
+pytest.importorskip("lbforaging")
+
+SEATS = {"model": {"heads": "seat"}}
+
+
+def test_seat_heads_hold_the_weights_and_each_team_head_adds_one_per_seat() -> None:
+    setup = resolve(ExperimentConfig(population="lbf-heuristics", **SEATS))
+    assert setup.seat_heads and setup.head_ids == ["ego@H1+H1", "ego@H1+H2", "ego@H2+H1", "ego@H2+H2"]
+    assert setup.weight_heads == ["ego@player_1=H1", "ego@player_1=H2", "ego@player_2=H1", "ego@player_2=H2"]
+    assert setup.head_members == [[0, 2], [0, 3], [1, 2], [1, 3]]
+    # A new team (adaptation): one fresh head per seat, even where one partner sits in both.
+    new = setup_for(setup.exp, setup.population, setup.population.entries("test"), team=("H3", "H3"))
+    assert new.weight_heads == ["ego@player_1=H3", "ego@player_2=H3"] and new.head_members == [[0, 1]]
+    # Team heads (the default), a single head, and a game of two seats: each head holds its own weights.
+    team = resolve(ExperimentConfig(population="lbf-heuristics"))
+    assert not team.seat_heads and team.weight_heads == team.head_ids and team.head_members == [[0], [1], [2], [3]]
+    assert resolve(ExperimentConfig(population="lbf-heuristics", method="agg", **SEATS)).weight_heads == ["ego"]
+    two = resolve(ExperimentConfig(population="blocks-perm", **SEATS))
+    assert not two.seat_heads and two.weight_heads == two.head_ids
+
+
+@pytest.mark.slow
+def test_an_ego_with_seat_heads_trains_saves_sums_of_them_and_adapts_to_a_held_out_team(ray_session, tmp_path) -> None:
+    config = tmp_path / "seats.yaml"
+    tiny = {"name": "seats", "population": "lbf-heuristics", "model": {"hidden": 8, "heads": "seat"}}
+    config.write_text(yaml.safe_dump({**tiny, "ppo": {"rollout_per_partner": 50, "num_epochs": 1}, "run": {"timesteps": 400}}))
+    assert main(["train", str(config), "--storage", str(tmp_path / "runs")]) == 0
+    (trial,) = trial_folders(tmp_path / "runs" / "seats")
+    module = load_module(last_checkpoint(trial))
+    heads = {mid: module[mid] for mid in module.head_ids()}
+    assert sorted(heads) == ["ego@H1+H1", "ego@H1+H2", "ego@H2+H1", "ego@H2+H2"]
+    assert all(h.pi[0].weight.shape == (16, 8) for h in heads.values())  # saved as one head, two seat heads wide
+    # Sums of seat heads: (1=H1 + 2=H1) + (1=H2 + 2=H2) = (1=H1 + 2=H2) + (1=H2 + 2=H1), for policy and value alike;
+    # heads trained apart (`model.heads: team`) would not satisfy it.
+    z = torch.randn(32, 8, generator=torch.Generator().manual_seed(0))
+    for part in ("pi", "vf"):
+        out = {mid: getattr(h, part)(z).detach() for mid, h in heads.items()}
+        torch.testing.assert_close(out["ego@H1+H1"] + out["ego@H2+H2"], out["ego@H1+H2"] + out["ego@H2+H1"])
+        assert not torch.allclose(out["ego@H1+H1"], out["ego@H1+H2"])
+
+    base = {"runs": [str(trial)], "every": 50, "steps": 100, "episodes": 4, "ppo": {"num_epochs": 1, "minibatch_size": 25}}
+    fresh = checked({**base, "name": "fresh", "partners": ["H3+H4"]}, AdaptConfig)
+    plastic = checked({**base, "name": "plastic", "partners": ["H4"], "head_init": "plastic"}, AdaptConfig)
+    run_adaptations([fresh, plastic], out=tmp_path / "out", storage=tmp_path / "adapt-runs")
+    for name, team in (("fresh", "H3+H4"), ("plastic", "H4+H4")):
+        curves = pd.read_csv(tmp_path / "out" / f"{name}.csv")
+        assert curves["partner"].unique().tolist() == [team] and curves["steps"].tolist()[0] == 0
+        assert curves["steps"].max() >= 100 and curves["mean_return"].between(0.0, 1.0).all()
