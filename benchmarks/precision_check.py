@@ -28,7 +28,7 @@ import pandas as pd
 from analysis.loaders import CONFIG_PREFIX, load_adaptation, load_trial_summaries, trial_dirs
 from analysis.summaries import adaptation_auc, mean_ci
 from benchmarks._common import write_result
-from rllib_conv.common.run_folders import experiment_of
+from rllib_conv.common.run_folders import experiment_of, split_experiment
 
 SIDES = ("float32", "bfloat16")
 
@@ -54,7 +54,7 @@ def seed_rows(game_dir: Path, experiment: str) -> pd.DataFrame:
 def adaptation_rows(game_dir: Path, experiment: str) -> pd.DataFrame:
     """One row per seed of `experiment`'s adaptation curves under `game_dir`: means over its new partners of AUC, start, end, gain."""
     curves = load_adaptation(game_dir)
-    population, _, label = experiment.partition("__")
+    population, label = split_experiment(experiment)
     curves = curves[(curves["population"] == population) & (curves["label"] == label)]
     if curves.empty:
         raise SystemExit(f"no adaptation curves of experiment {experiment!r} under {game_dir}/adaptation")
@@ -90,10 +90,11 @@ def main() -> None:
     parser.add_argument("--adaptation", action="store_true", help="also compare the egos' adaptation curves (see above)")
     parser.add_argument("--name", default="precision_check")
     args = parser.parse_args()
-    sides = {s: seed_rows(getattr(args, f"{s}_dir"), getattr(args, f"{s}_experiment")) for s in SIDES}
-    if args.adaptation:
-        for s in SIDES:
-            sides[s] = sides[s].join(adaptation_rows(getattr(args, f"{s}_dir"), getattr(args, f"{s}_experiment")))
+    sides = {}
+    for s in SIDES:
+        folder, experiment = getattr(args, f"{s}_dir"), getattr(args, f"{s}_experiment")
+        rows = seed_rows(folder, experiment)
+        sides[s] = rows.join(adaptation_rows(folder, experiment)) if args.adaptation else rows
     rows = compare(sides)
     table = pd.DataFrame(
         [

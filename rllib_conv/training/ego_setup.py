@@ -64,8 +64,7 @@ class EgoSetup:
         """
         if not self.seat_heads:
             return self.head_ids
-        pairs = [(seat, name) for seat_index, seat in enumerate(self.partner_agents) for name in self._seat_partners(seat_index)]
-        return [ego_id(f"{seat}={name}") for seat, name in pairs]
+        return [_seat_head(seat, name) for i, seat in enumerate(self.partner_agents) for name in self._seat_partners(i)]
 
     @property
     def head_members(self) -> list[list[int]]:
@@ -73,7 +72,7 @@ class EgoSetup:
         if not self.seat_heads:
             return [[h] for h in range(len(self.head_ids))]
         index = {mid: i for i, mid in enumerate(self.weight_heads)}
-        return [[index[ego_id(f"{seat}={name}")] for seat, name in zip(self.partner_agents, team)] for team in self.teams]
+        return [[index[_seat_head(seat, name)] for seat, name in zip(self.partner_agents, team)] for team in self.teams]
 
     def _seat_partners(self, seat_index: int) -> list[str]:
         """The partners that sit in partner seat `seat_index` in some team, in order of first appearance."""
@@ -83,6 +82,11 @@ class EgoSetup:
         """The ego head that plays with `partner_name` (a team: one name per partner seat; the shared head for single-network methods)."""
         names = (partner_name,) if isinstance(partner_name, str) else tuple(partner_name)
         return AGG_HEAD_ID if method(self.exp.method).single_head else ego_id(team_name(names))
+
+
+def _seat_head(seat: str, partner: str) -> str:
+    """The name of the seat head for `partner` in partner seat `seat` (`ego@player_1=H1`); it seeds the head's weights."""
+    return ego_id(f"{seat}={partner}")
 
 
 def resolve(exp: ExperimentConfig) -> EgoSetup:

@@ -359,13 +359,14 @@ def test_quick_lbf_reproduction_trains_on_three_seats_and_adapts_to_a_held_out_t
     assert [e.name for e in population.entries("test")] == ["sp02"] and population.partner_agents == ["player_1", "player_2"]
     # A new partner is a team, one held-out member per partner seat (the quick plan's first: H3 in both; the
     # self-play population's one test member in both).
-    teams = {"lbf-heuristics": {"H3+H3"}, "lbf-selfplay": {"sp02+sp02"}}
-    labels = {"lbf-heuristics": ("modular-lam0.5", "agg", "scratch", "beyond-plastic")}
-    labels["lbf-selfplay"] = ("modular-lam0.5", "scratch", "beyond-plastic")
-    for population_name, team in teams.items():
-        for label in labels[population_name]:
+    adapted = {
+        "lbf-heuristics": ("H3+H3", ["modular-lam0.5", "agg", "scratch", "beyond-plastic"]),
+        "lbf-selfplay": ("sp02+sp02", ["modular-lam0.5", "scratch", "beyond-plastic"]),
+    }
+    for population_name, (team, labels) in adapted.items():
+        for label in labels:
             curves = pd.read_csv(game / "adaptation" / f"{population_name}__{label}.csv")
-            assert set(curves["partner"]) == team, (population_name, label)
+            assert set(curves["partner"]) == {team}, (population_name, label)
             assert curves["steps"].min() == 0 and curves["steps"].max() >= 1000, (population_name, label)
             assert curves["mean_return"].between(0, 1).all(), (population_name, label)
     # Every method's egos against every team of the held-out types, normalised by the set's declared bounds.
