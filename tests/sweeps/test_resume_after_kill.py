@@ -73,6 +73,10 @@ def _prune_before_the_state_names_a_successor(storage: Path) -> Path:
     named = _named_checkpoints(storage)
     assert named, "Tune should have saved a state naming a checkpoint before the kill"
     folder, checkpoint = sorted(named.items())[-1]
+    if not checkpoint.exists():
+        # The kill itself fell between a prune and Tune's next save of its state (seen once in CI): Tune
+        # pruned it only after registering newer ones, so the case is already on disk.
+        return storage / "sweep" / folder
     successor = checkpoint.with_name(f"checkpoint_{int(checkpoint.name.rsplit('_', 1)[1]) + 1:06d}")
     if not _registered(successor):
         # Tune prunes a checkpoint only after registering newer ones, and registering copies the logs
