@@ -34,6 +34,9 @@ PRIOR_PLANNER = "prior-planner"
 CONTROLS = (LOOKUP, COUNTS_PLANNER, PRIOR_PLANNER)
 # The field's ad hoc teamwork reference (Barrett & Stone's PLASTIC): a belief over known partner types.
 PLASTIC = "plastic"
+# An ego with one head per partner seat and partner (`model.heads: seat`) meeting a team with members it trained with:
+# their seat heads kept, a fresh one for each new member.
+KNOWN_SEATS = "known-seats"
 
 # What a game must have for an adapter (`Adapter.needs_game`): its record's convention key, a best-response
 # planner for the ego's seat, simultaneous moves (a parallel env: each step's situation is one both seats see), or
@@ -59,6 +62,8 @@ class Uses:
     # A model of the game: the best response planned against a partner model (`envs.best_response`),
     # or, in the server, the hindsight targets (which move would have answered the person best).
     game_model: bool = False
+    # Which members of a new team are training partners, and in which seats (told, not inferred from their play).
+    partner_identities: bool = False
 
     def names(self) -> list[str]:
         """The names of the fields that are read, in field order (for tables)."""
@@ -196,6 +201,18 @@ ADAPTERS: dict[str, Adapter] = {
             uses={"adapt": Uses(partner_actions=True, training_policies=True, game_model=True)},
             module="rllib_conv/adaptation/plastic.py",
             needs_game=("seat_view",),
+            many_seats=True,
+        ),
+        Adapter(
+            name=KNOWN_SEATS,
+            title="a seat-head ego keeps the seat heads of the team's members it trained with (same seat) and adapts them "
+            "with a fresh head for each new member",
+            in_paper=False,
+            role="start",
+            needs_partner_heads=True,
+            # Told which members are training partners (their names); then PPO on the rollouts, as fresh.
+            uses={"adapt": Uses(returns=True, partner_identities=True)},
+            module="rllib_conv/pipelines/adapt.py (known_seat_heads)",
             many_seats=True,
         ),
     )

@@ -47,6 +47,9 @@ PROGRESS_FILES = ("progress.csv", "result.json")
 CHECKPOINT_PREFIX = "checkpoint_"
 # Inside an RLlib algorithm checkpoint: one folder per module ID.
 RL_MODULE_DIR = Path("learner_group") / "learner" / "rl_module"
+# Inside an exported ego with one head per partner seat and partner (`model.heads: seat`): each seat head as a plain
+# head checkpoint of its own (`ego@<seat>=<partner>`), beside the team heads that sum them.
+SEAT_HEADS_DIR = "seat_heads"
 
 # --- populations --------------------------------------------------------------------------
 POPULATION_FILE = "population.json"

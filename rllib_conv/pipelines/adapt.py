@@ -29,7 +29,10 @@ In a game of more than two seats a new partner is a team, one partner per partne
 (`H3+H4`; a single name sits in every seat): the curve's partner is the team's name, its
 fresh head `ego@<team>`, every episode seats that team, and it is evaluated with the team in
 its seats. By default a curve adapts to every team of the split. The adapters that choose among
-one partner's heads or situations (pick, posterior, the controls) are refused there.
+one partner's heads or situations (pick, posterior, the controls) are refused there. An ego
+with one head per partner seat and partner (`model.heads: seat`) adapts one fresh seat head
+per seat; with `head_init: known-seats` a member it trained with in that seat keeps its
+trained seat head instead (`known_seat_heads`), and PPO adapts them all.
 
 Curves train in packs: one Tune trial (`AdaptTrainable`) holds up to `max_pack` curves of
 egos that differ only in seed and partner, as replicas of one algorithm (each with its own
@@ -72,6 +75,7 @@ from rllib_conv.adaptation.registry import (
     CONTROLS,
     FRESH,
     GUARD,
+    KNOWN_SEATS,
     LOOKUP,
     PICK,
     PLASTIC,
@@ -86,7 +90,7 @@ from rllib_conv.adaptation.registry import (
 from rllib_conv.common.atomic_files import replaced_atomically
 from rllib_conv.common.config_files import Checked
 from rllib_conv.common.methods import method
-from rllib_conv.common.run_folders import ADAPT, RL_MODULE_DIR, trial_folders
+from rllib_conv.common.run_folders import ADAPT, RL_MODULE_DIR, SEAT_HEADS_DIR, trial_folders
 from rllib_conv.common.seeds import pick_seed
 from rllib_conv.envs.seat_views import seat_view
 from rllib_conv.modules import partner_id
@@ -225,7 +229,28 @@ def adapt_curve(cfg: AdaptConfig, run: str, partner: str) -> Curve:
     }
     setup = setup_for(exp, pop, entries, team)
     check_game(cfg.head_init, game, setup.env_config, setup.ego_agent)
+    if cfg.head_init == KNOWN_SEATS:
+        load |= known_seat_heads(trial, trained, setup)
     return Curve(run, partner, setup, load, trained, label)
+
+
+def known_seat_heads(trial: Path, trained: ExperimentConfig, setup: EgoSetup) -> dict[str, str]:
+    """The seat heads of `setup`'s new team that the ego in `trial` trained (the member, in the same seat): module ID -> saved
+    head (`head_init: known-seats`); ValueError if the ego has no seat heads or knows no member there."""
+    saved = last_checkpoint(trial) / SEAT_HEADS_DIR
+    if trained.model.heads != "seat" or not saved.is_dir():
+        why = "has team heads" if trained.model.heads != "seat" else "keeps no seat heads (trained before they were saved)"
+        raise ValueError(
+            f"head_init 'known-seats' starts from the seat heads of an ego trained with model.heads: seat; the ego in "
+            f"{str(trial)!r} {why}"
+        )
+    known = {mid: str(saved / mid) for mid in setup.weight_heads if (saved / mid).is_dir()}
+    if not known:
+        raise ValueError(
+            f"head_init 'known-seats': no member of team {team_name(setup.teams[0])!r} trained with the ego in {str(trial)!r} "
+            f"in its seat (its seat heads: {sorted(p.name for p in saved.iterdir())}); use head_init fresh"
+        )
+    return known
 
 
 def protocol(cfg: AdaptConfig, trained: ExperimentConfig) -> tuple[int, int, int]:

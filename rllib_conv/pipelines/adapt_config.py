@@ -68,7 +68,10 @@ class AdaptConfig(Strict):
     observation shows them, and plays the trained ego's head for the most probable team
     (`rllib_conv.adaptation.plastic`; `posterior.epsilon` smooths its models). In a game of more
     than two seats a partner is a team (`partners`: `H3+H4`, or `H3` in every seat; default every
-    team of the split); fresh (guarded or not) and plastic adapt there, the other starts are refused.
+    team of the split); fresh (guarded or not), plastic and known-seats adapt there, the other starts are refused.
+    `head_init: known-seats` (not in the paper; egos trained with `model.heads: seat`) starts each
+    member of the team the ego trained with in that seat from its trained seat head, each new
+    member from a fresh one, and adapts them all as fresh does.
     """
 
     name: FolderName = Field("adapt", description="name of the output CSV and Tune experiment")
@@ -87,7 +90,8 @@ class AdaptConfig(Strict):
         description="pick: first try the fresh head and every training partner's head on the new partner, adapt from the best; "
         "posterior: adapt the fresh head and play by a posterior over which training partner's convention the new partner follows; "
         "lookup, counts-planner, prior-planner: the posterior's information-parity controls (docs/adapting.md); "
-        "plastic: a belief over the training partners' types per partner seat, playing the head of the most probable team "
+        "plastic: a belief over the training partners' types per partner seat, playing the head of the most probable team; "
+        "known-seats: a seat-head ego keeps the seat heads of the team's known members, a fresh one per new member "
         "(all not in the paper)",
     )
     pick_steps: PositiveInt | None = Field(None, description="env steps spent picking the head (default: one update's worth)")

@@ -46,7 +46,7 @@ from rllib_conv.training.evaluate import ego_head_partner, seated_return
 from rllib_conv.training.experiment import ExperimentConfig
 from rllib_conv.training.maml import MetaTrainer
 from rllib_conv.training.marginal_distance import marginal_distances, marginal_states
-from rllib_conv.training.replica_export import export_replica, replica_module
+from rllib_conv.training.replica_export import export_replica, replica_module, seat_head_modules
 from rllib_conv.training.replica_steps import replica_env_steps
 from rllib_conv.training.stage import Stage, run_jobs, validated
 from rllib_conv.training.trainable import AlgorithmTrainable
@@ -193,7 +193,8 @@ class EgoTrainable(AlgorithmTrainable):
             final = evaluate(plain, rep.setup, rep.setup.exp.run.eval_episodes, rep.own_seed)
             evaluations.append(final)
             final = {**final, **timing, "replicas": len(self.replicas)}
-            export_replica(plain, rep, replica_folder(self.exports[self.units[r][0]], rep.own_seed), final, self.history[r])
+            folder = replica_folder(self.exports[self.units[r][0]], rep.own_seed)
+            export_replica(plain, rep, folder, final, self.history[r], seat_head_modules(module, r, rep))
         out = _mean_over(evaluations) | timing
         for label, e in zip(self.labels, evaluations):
             out.update({f"{label}/{k}": v for k, v in e.items()})

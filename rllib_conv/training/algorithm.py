@@ -129,6 +129,18 @@ def module_specs(setup: EgoSetup, load: dict[str, str] | None = None, seed: int 
     return specs
 
 
+def seat_head_specs(setup: EgoSetup) -> dict[str, RLModuleSpec]:
+    """The RLModuleSpecs of a seat-head ego's weight heads (`EgoSetup.weight_heads`), each a plain head as in team mode."""
+    ego_obs, ego_act, _, _ = _spaces(setup)
+    _, head_config = _module_configs(setup)
+    return {
+        mid: RLModuleSpec(
+            module_class=PartnerHeadModule, observation_space=ego_obs, action_space=ego_act, model_config=head_config
+        )
+        for mid in setup.weight_heads
+    }
+
+
 def _spaces(setup: EgoSetup) -> tuple:
     """The ego's and the partner's observation and action spaces, as the RLlib adapter gives them."""
     env = PettingZooMultiAgentEnv(envs.make(setup.population.env, **setup.env_config))
@@ -317,7 +329,8 @@ def replica_weight_settings(replicas: list[Replica]) -> dict[str, float | tuple[
 def load_replica_weights(algo: Any, replicas: list[Replica]) -> None:
     """Write each replica's starting weights (`Replica.load`: module ID -> plain module checkpoint) into the stack; sync env runners.
 
-    `task` loads a replica's task module; a head ID (`ego@p`, `ego`) loads that head.
+    `task` loads a replica's task module; a head ID (`ego@p`, `ego`) loads that head, a seat head's
+    (`ego@<seat>=<partner>`, `EgoSetup.weight_heads`) that seat head.
     """
     if not any(rep.load for rep in replicas):
         return
@@ -328,8 +341,10 @@ def load_replica_weights(algo: Any, replicas: list[Replica]) -> None:
         for (r, mid), state in states.items():
             if mid == TASK_ID:
                 stack.load_task(r, state)
-            else:
+            elif mid in replicas[r].setup.head_ids:
                 stack.load_head(r, replicas[r].setup.head_ids.index(mid), state)
+            else:
+                stack.load_weight_head(r, replicas[r].setup.weight_heads.index(mid), state)
 
     algo.learner_group.foreach_learner(load)
     push_learner_weights(algo)

@@ -39,6 +39,7 @@ def test_adapt_and_play_offer_the_vocabularys_starts() -> None:
         "counts-planner",
         "prior-planner",
         "plastic",
+        "known-seats",
     ]
     assert AdaptConfig.model_fields["head_init"].default == adapters.FRESH
     for start in adapters.names(role="start"):
@@ -68,7 +69,7 @@ def test_the_old_spelling_table_is_the_fresh_adapter_in_the_server() -> None:
         build_settings(agents=["pilot=oracle"], adapter="pick")  # an adapter of `adapt` only
     with pytest.raises(
         ValueError,
-        match="unknown adapter 'bayes'; adapters: fresh, pick, posterior, guard, lookup, counts-planner, prior-planner, plastic",
+        match="unknown adapter 'bayes'; adapters: fresh, pick, posterior, guard, lookup, counts-planner, prior-planner, plastic, known-seats",
     ):
         adapters.adapter("bayes")
 
@@ -93,6 +94,8 @@ def test_what_each_adapter_uses_is_stated_per_surface() -> None:
     assert uses["prior-planner"] == {"adapt": ["training_policies", "game_model"]}
     # PLASTIC: the partners' moves against the training partners' policies, each seat's situation rebuilt by the rules.
     assert uses["plastic"] == {"adapt": ["partner_actions", "training_policies", "game_model"]}
+    # Known seats: told which members it trained with, then PPO as the fresh head.
+    assert uses["known-seats"] == {"adapt": ["returns", "partner_identities"]}
     assert [a.name for a in adapters.ADAPTERS.values() if a.in_paper] == ["fresh"]
 
 

@@ -167,9 +167,10 @@ class EgoStack(TorchRLModule):
 
     def head_state(self, replica: int, head: int) -> dict[str, torch.Tensor]:
         """Head `head` of replica `replica`, as a `PartnerHeadModule` state dict (the sum of its members: `summed_head_state`)."""
-        return summed_head_state([self._weight_head_state(replica, w) for w in self.members[head]])
+        return summed_head_state([self.weight_head_state(replica, w) for w in self.members[head]])
 
-    def _weight_head_state(self, replica: int, weight_head: int) -> dict[str, torch.Tensor]:
+    def weight_head_state(self, replica: int, weight_head: int) -> dict[str, torch.Tensor]:
+        """Weight head `weight_head` of replica `replica` (a team head, or one seat head of `head_members`), as a plain head's state."""
         return {
             f"{layer}.{part}": getattr(self, _name(kind, layer, part))[replica, weight_head].detach().clone()
             for kind, layers in (("head_pi", HEAD_POLICY), ("head_vf", HEAD_VALUE))
@@ -189,10 +190,15 @@ class EgoStack(TorchRLModule):
         """Write a `PartnerHeadModule` state dict into head `head` of replica `replica` (in place; a head of one member)."""
         if self._weights_of is not None:
             raise ValueError(f"head {head} adds weight heads {self.members[head]}: a plain head's state does not split into them")
+        self.load_weight_head(replica, head, state)
+
+    @torch.no_grad()
+    def load_weight_head(self, replica: int, weight_head: int, state: dict[str, torch.Tensor]) -> None:
+        """Write a `PartnerHeadModule` state dict into weight head `weight_head` of replica `replica` (a seat head, or a team head of one member)."""
         for kind, layers in (("head_pi", HEAD_POLICY), ("head_vf", HEAD_VALUE)):
             for layer in layers:
                 for part in ("weight", "bias"):
-                    getattr(self, _name(kind, layer, part))[replica, head].copy_(state[f"{layer}.{part}"])
+                    getattr(self, _name(kind, layer, part))[replica, weight_head].copy_(state[f"{layer}.{part}"])
 
     # --- batched forward passes ----------------------------------------------------------------------------
 
