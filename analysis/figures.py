@@ -43,6 +43,7 @@ from rllib_conv.common.methods import (  # noqa: E402
     PPO_BC,
     SCRATCH,
     SEAT_HEADS,
+    SEAT_KNOWN,
 )
 from rllib_conv.common.methods import LABELS as LABEL_ORDER  # noqa: E402  (methods in the order of the paper's legends)
 
@@ -62,6 +63,7 @@ LABEL_STYLES: dict[str, tuple[str, str | tuple]] = {
     LOW_Z: ("#332288", (0, (6, 1.5))),  # indigo, long dashes (dots read as from scratch's black)
     HEAD_PENALTY: ("#44AA99", (0, (5, 1, 1, 1, 1, 1))),  # teal, dash-dot-dot (not in the paper)
     SEAT_HEADS: ("#EE3377", (0, (1, 2, 4, 2))),  # Tol's vibrant magenta, dot-dash: a head per seat and partner (k seats)
+    SEAT_KNOWN: ("#009988", (0, (4, 1, 1, 1, 1, 1, 1, 1))),  # Tol's vibrant teal: the same egos, known members' heads kept
     PICKED: ("#999933", (0, (8, 2))),  # olive, long dashes (not in the paper)
     HEAD_PENALTY_PICKED: ("#888888", (0, (8, 2, 1, 2))),  # grey, long dash-dot (not in the paper)
     GUARDED: ("#AA4499", (0, (2, 2))),  # purple, short dashes: ours, its fine-tuning guarded (not in the paper)

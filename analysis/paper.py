@@ -39,6 +39,7 @@ from rllib_conv.common.methods import (
     PPO_BC,
     SCRATCH,
     SEAT_HEADS,
+    SEAT_KNOWN,
 )
 
 
@@ -97,6 +98,7 @@ LABEL_NAMES: dict[str, str] = {
     CONTROL_PRIOR: "control: the planner against the frozen prior",
     LOW_Z: "ours λ=0.5, low-dim z",
     SEAT_HEADS: "ours λ=0.5, a head per seat and partner",
+    SEAT_KNOWN: "ours λ=0.5, seat heads, known members' kept",
     "agg": "BaselineAgg",
     "no_task_logits": "BaselineModular",
     "maml": "First-Order MAML",

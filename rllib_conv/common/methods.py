@@ -154,6 +154,7 @@ LAM03 = lam_label(0.3)
 LOW_Z = lam_label(PAPER_LAM, "lowz")  # ours with a low-dimensional z
 HEAD_PENALTY = f"{PAPER_METHOD}-hl0.01"  # ours with the head penalty head_l2 0.01 (not in the paper)
 SEAT_HEADS = f"{PAPER_METHOD}-seat"  # ours with a head per partner seat and partner, `model.heads: seat` (k seats)
+SEAT_KNOWN = f"{SEAT_HEADS}-known"  # its egos adapting with the seat heads of a team's known members kept (k seats)
 PICKED = f"{PAPER_METHOD}-pick"  # ours, adapting from a picked head (not in the paper)
 HEAD_PENALTY_PICKED = f"{HEAD_PENALTY}-pick"
 BC_TRAINED = f"{PAPER_METHOD}-bc"  # ours trained with Overcooked's BC proxies, as PPO_BC is (not in the paper)
@@ -175,6 +176,7 @@ ADAPTED_BY: dict[str, tuple[str, ...]] = {
     BEYOND_POSTERIOR: (adapters.POSTERIOR,),
     BEYOND_GUARDED: (adapters.POSTERIOR, adapters.GUARD),
     BEYOND_PLASTIC: (adapters.PLASTIC,),
+    SEAT_KNOWN: (adapters.KNOWN_SEATS,),
     CONTROL_LOOKUP: (adapters.LOOKUP,),
     CONTROL_COUNTS: (adapters.COUNTS_PLANNER,),
     CONTROL_PRIOR: (adapters.PRIOR_PLANNER,),
@@ -186,6 +188,7 @@ BASELINES: tuple[str, ...] = ("agg", "no_task_logits", "maml")  # the paper's ba
 EXTENSIONS: tuple[str, ...] = (
     HEAD_PENALTY,
     SEAT_HEADS,
+    SEAT_KNOWN,
     PICKED,
     HEAD_PENALTY_PICKED,
     GUARDED,

@@ -190,6 +190,24 @@ _BUILTINS: dict[str, Callable[[], Population]] = {}
 _READY: dict[str, Callable[[], bool]] = {}
 
 
+def parse_team(pop: Population, partner: str) -> tuple[str, ...]:
+    """The team `partner` names in a game of several partner seats: one name per seat joined by '+', or one name for every seat."""
+    seats, known = pop.partner_agents, [e.name for e in pop.partners]
+    names = partner.split(TEAM_SEPARATOR)
+    if len(names) == 1:
+        names = names * len(seats)
+    if len(names) != len(seats):
+        raise ValueError(
+            f"partners: {partner!r} names {len(names)} partners, but population {pop.name!r} has {len(seats)} partner seats "
+            f"{seats}: give one partner for every seat, or one per seat joined by {TEAM_SEPARATOR!r} (e.g. "
+            f"{TEAM_SEPARATOR.join(known[:1] * len(seats))!r})"
+        )
+    unknown = sorted(set(names) - set(known))
+    if unknown:
+        raise ValueError(f"partners: population {pop.name!r} has no partner(s) {unknown} (in {partner!r}); it has {known}")
+    return tuple(names)
+
+
 def refuse_existing(folder: Path, overwrite: bool, name_option: str = "name") -> None:
     """ValueError naming `folder` when a population folder is there and `overwrite` is off (checked before any work)."""
     if folder.exists() and not overwrite:

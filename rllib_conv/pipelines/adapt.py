@@ -97,7 +97,7 @@ from rllib_conv.modules import partner_id
 from rllib_conv.modules.multi import AGG_HEAD_ID, TASK_ID, replica_id
 from rllib_conv.modules.packed.stacked_multi import STACK_ID
 from rllib_conv.partners.base import Partner
-from rllib_conv.partners.population import TEAM_SEPARATOR, PartnerEntry, Population, team_name
+from rllib_conv.partners.population import PartnerEntry, Population, parse_team, team_name
 from rllib_conv.pipelines.adapt_config import AdaptConfig
 from rllib_conv.training.algorithm import Replica, build_algorithm, packing_key
 from rllib_conv.training.callbacks import STEPS_DONE, STEPS_TOTAL
@@ -142,24 +142,6 @@ class Curve:
         """Every seat's player for one evaluation: `ego` in the ego's seat, a fresh copy of the new partner in each other."""
         entries = {e.name: e for e in self.setup.train}
         return {self.setup.ego_agent: ego} | {a: entries[n].build() for a, n in zip(self.setup.partner_agents, self.team)}
-
-
-def parse_team(pop: Population, partner: str) -> tuple[str, ...]:
-    """The team `partner` names in a game of several partner seats: one name per seat joined by '+', or one name for every seat."""
-    seats, known = pop.partner_agents, [e.name for e in pop.partners]
-    names = partner.split(TEAM_SEPARATOR)
-    if len(names) == 1:
-        names = names * len(seats)
-    if len(names) != len(seats):
-        raise ValueError(
-            f"partners: {partner!r} names {len(names)} partners, but population {pop.name!r} has {len(seats)} partner seats "
-            f"{seats}: give one partner for every seat, or one per seat joined by {TEAM_SEPARATOR!r} (e.g. "
-            f"{TEAM_SEPARATOR.join(known[:1] * len(seats))!r})"
-        )
-    unknown = sorted(set(names) - set(known))
-    if unknown:
-        raise ValueError(f"partners: population {pop.name!r} has no partner(s) {unknown} (in {partner!r}); it has {known}")
-    return tuple(names)
 
 
 def _new_partner(pop: Population, partner: str) -> tuple[list[PartnerEntry], tuple[str, ...] | None]:

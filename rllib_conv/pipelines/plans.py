@@ -32,6 +32,7 @@ from rllib_conv.common.config_files import Strict
 from rllib_conv.common.resources import available, config_file
 from rllib_conv.common.seeds import population_seed
 from rllib_conv.partners.evaluation_sets import Role, shipped_set
+from rllib_conv.partners.population import parse_team, team_name
 from rllib_conv.pipelines.evaluate_config import check_fit
 from rllib_conv.pipelines.selfplay_config import SelfPlayConfig
 
@@ -88,6 +89,7 @@ class Plan:
     # optimal actions, so the distance to that uniform distribution measures nothing the regulariser aims at.
     no_marginals: list[str] = field(default_factory=list)
     adapt_partners: int | None = None  # test partners per population (None: all)
+    adapt_teams: dict[str, list[str]] = field(default_factory=dict)  # population -> the teams its egos adapt to (k seats)
     train_overrides: dict[str, Any] = field(default_factory=dict)
     train_steps: int | None = None  # every ego's training env steps, over any default or override (None: keep them)
     adapt_overrides: dict[str, Any] = field(default_factory=dict)
@@ -170,6 +172,11 @@ class ScaleSpec(Strict):
     adapt_variants: list[str] = Field(default_factory=list)
     no_marginals: list[str] = Field(default_factory=list)
     adapt_partners: PositiveInt | None = None
+    adapt_teams: dict[str, list[str]] = Field(
+        default_factory=dict,
+        description="population -> the teams its egos adapt to (`H1+H3`: one partner per partner seat, test or train members) "
+        "instead of every team of its test members; e.g. teams with a member the egos trained with (head_init known-seats)",
+    )
     population_overrides: dict[str, dict[str, Any]] = Field(default_factory=dict)
     train_overrides: dict[str, Any] = Field(default_factory=dict)
     adapt_overrides: dict[str, Any] = Field(default_factory=dict)
@@ -224,6 +231,7 @@ class PlanFile(Strict):
             trained = {**spec.populations, **{sp.get("name"): spec.selfplay_methods for sp in spec.selfplay}}
             check(list(spec.adapt_to), trained, f"{scale}.adapt_to")
             check(list(spec.evaluate), spec.populations, f"{scale}.evaluate")
+            check(list(spec.adapt_teams), spec.populations, f"{scale}.adapt_teams")
             targets: dict[tuple[str, str], str] = {}
             for source, others in spec.adapt_to.items():
                 for other in others:
@@ -306,6 +314,17 @@ def plan_for(
             check_game(start, game, {}, "player_0")
         except ValueError as exc:
             raise ValueError(f"plan file {str(source)!r}: adapt_variants.{label}: {exc}") from None
+    for population, teams in scale.adapt_teams.items():
+        pop = partners.get(population)
+        if len(pop.partner_agents) == 1:
+            raise ValueError(
+                f"plan file {str(source)!r}: adapt_teams.{population}: a team needs several partner seats; it has one"
+            )
+        for team in teams:
+            try:
+                parse_team(pop, team)
+            except ValueError as exc:
+                raise ValueError(f"plan file {str(source)!r}: adapt_teams.{population}: {exc}") from None
     for population, roles in scale.evaluate.items():
         pop = partners.get(population)
         for role in roles:
@@ -332,6 +351,10 @@ def plan_for(
         adapt_variants=[adapt_variants[x] for x in scale.adapt_variants],
         no_marginals=scale.no_marginals,
         adapt_partners=scale.adapt_partners,
+        adapt_teams={
+            population: [team_name(parse_team(partners.get(population), t)) for t in teams]
+            for population, teams in scale.adapt_teams.items()
+        },
         train_overrides=scale.train_overrides,
         train_steps=train_steps,
         adapt_overrides=scale.adapt_overrides,

@@ -212,8 +212,9 @@ class Reproduction:
 
     def adapt_partners(self, population: str) -> list[str]:
         """The new partners the egos of `population` adapt to: its held-out partners, or with several partner seats every
-        team of them (`H3+H4`), as `rllib-conv adapt` does; the plan's `adapt_partners` first ones."""
-        return [name for name, _ in partners.get(population).teams("test")][: self.plan.adapt_partners]
+        team of them (`H3+H4`), as `rllib-conv adapt` does, or the plan's `adapt_teams`; the plan's `adapt_partners` first ones."""
+        names = self.plan.adapt_teams.get(population) or [name for name, _ in partners.get(population).teams("test")]
+        return names[: self.plan.adapt_partners]
 
     def stage_adapt(self) -> None:
         configs = []

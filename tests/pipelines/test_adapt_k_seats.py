@@ -11,7 +11,8 @@ from rllib_conv import partners
 from rllib_conv.adaptation.registry import check_seats
 from rllib_conv.cli import main
 from rllib_conv.common.config_files import checked
-from rllib_conv.pipelines.adapt import CURVE_COLUMNS, adaptation_curves, parse_team, run_adaptations
+from rllib_conv.partners.population import parse_team
+from rllib_conv.pipelines.adapt import CURVE_COLUMNS, adaptation_curves, run_adaptations
 from rllib_conv.pipelines.adapt_config import AdaptConfig
 
 pytest.importorskip("lbforaging")

@@ -116,3 +116,25 @@ def test_the_full_plan_adapts_to_every_test_partner_of_a_population(tmp_path, mo
     Reproduction(narrow(plan_for("bandit", seeds=3), ["bandit-user-study"], ["agg"]), tmp_path).stage_adapt()
     every = [e.name for e in partners.get("bandit-user-study").entries("test")]
     assert len(every) > 4 and captured and all(c["partners"] == every for c in captured)
+
+
+def test_a_plan_may_name_the_teams_a_population_adapts_to_and_a_bad_team_is_refused_by_the_file(tmp_path) -> None:
+    raw = yaml.safe_load(shipped_plan("lbf").read_text())
+    raw["full"].update(adapt_variants=["modular-lam0.5-seat-known"], adapt_teams={"lbf-heuristics": ["H1+H3", "H4+H2", "H2"]})
+    plan = plan_for("lbf", path=_write(tmp_path, raw))
+    assert plan.adapt_teams == {"lbf-heuristics": ["H1+H3", "H4+H2", "H2+H2"]}  # one name: it sits in every seat
+    assert Reproduction(plan, Path("/runs")).adapt_partners("lbf-heuristics") == ["H1+H3", "H4+H2", "H2+H2"]
+    # Without them: every team of the test members.
+    default = Reproduction(plan_for("lbf"), Path("/runs")).adapt_partners("lbf-heuristics")
+    assert default == ["H3+H3", "H3+H4", "H4+H3", "H4+H4"]
+    for teams, error in (
+        (
+            {"lbf-heuristics": ["H1+H9"]},
+            r"adapt_teams.lbf-heuristics: partners: population 'lbf-heuristics' has no partner\(s\) \['H9'\]",
+        ),
+        ({"lbf-heuristics": ["H1+H2+H3"]}, r"adapt_teams.lbf-heuristics: partners: 'H1\+H2\+H3' names 3 partners"),
+        ({"lbf-other": ["H1+H3"]}, r"full.adapt_teams: \['lbf-other'\] not defined"),
+    ):
+        raw["full"]["adapt_teams"] = teams
+        with pytest.raises(ValueError, match=error):
+            plan_for("lbf", path=_write(tmp_path, raw))
