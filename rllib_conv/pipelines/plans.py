@@ -314,17 +314,17 @@ def plan_for(
             check_game(start, game, {}, "player_0")
         except ValueError as exc:
             raise ValueError(f"plan file {str(source)!r}: adapt_variants.{label}: {exc}") from None
+    adapt_teams = {}  # each team by its canonical name (`H2` in every seat: `H2+H2`)
     for population, teams in scale.adapt_teams.items():
         pop = partners.get(population)
         if len(pop.partner_agents) == 1:
             raise ValueError(
                 f"plan file {str(source)!r}: adapt_teams.{population}: a team needs several partner seats; it has one"
             )
-        for team in teams:
-            try:
-                parse_team(pop, team)
-            except ValueError as exc:
-                raise ValueError(f"plan file {str(source)!r}: adapt_teams.{population}: {exc}") from None
+        try:
+            adapt_teams[population] = [team_name(parse_team(pop, team)) for team in teams]
+        except ValueError as exc:
+            raise ValueError(f"plan file {str(source)!r}: adapt_teams.{population}: {exc}") from None
     for population, roles in scale.evaluate.items():
         pop = partners.get(population)
         for role in roles:
@@ -351,10 +351,7 @@ def plan_for(
         adapt_variants=[adapt_variants[x] for x in scale.adapt_variants],
         no_marginals=scale.no_marginals,
         adapt_partners=scale.adapt_partners,
-        adapt_teams={
-            population: [team_name(parse_team(partners.get(population), t)) for t in teams]
-            for population, teams in scale.adapt_teams.items()
-        },
+        adapt_teams=adapt_teams,
         train_overrides=scale.train_overrides,
         train_steps=train_steps,
         adapt_overrides=scale.adapt_overrides,

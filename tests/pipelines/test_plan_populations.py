@@ -138,3 +138,7 @@ def test_a_plan_may_name_the_teams_a_population_adapts_to_and_a_bad_team_is_refu
         raw["full"]["adapt_teams"] = teams
         with pytest.raises(ValueError, match=error):
             plan_for("lbf", path=_write(tmp_path, raw))
+    two = yaml.safe_load(shipped_plan("blocks").read_text())
+    two["full"]["adapt_teams"] = {"blocks-perm": ["p0"]}
+    with pytest.raises(ValueError, match="adapt_teams.blocks-perm: a team needs several partner seats; it has one"):
+        plan_for("blocks", path=_write(tmp_path, two))
