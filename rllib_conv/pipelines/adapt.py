@@ -220,11 +220,16 @@ def known_seat_heads(trial: Path, trained: ExperimentConfig, setup: EgoSetup) ->
     """The seat heads of `setup`'s new team that the ego in `trial` trained (the member, in the same seat): module ID -> saved
     head (`head_init: known-seats`); ValueError if the ego has no seat heads or knows no member there."""
     saved = last_checkpoint(trial) / SEAT_HEADS_DIR
-    if trained.model.heads != "seat" or not saved.is_dir():
-        why = "has team heads" if trained.model.heads != "seat" else "keeps no seat heads (trained before they were saved)"
+    if trained.model.heads != "seat" or not setup.seat_heads or not saved.is_dir():
+        if trained.model.heads != "seat":
+            why = "has team heads"
+        elif not setup.seat_heads:
+            why = "plays a game of one partner seat (its heads are per partner)"
+        else:
+            why = "keeps no seat heads (trained before they were saved apart: train it again)"
         raise ValueError(
-            f"head_init 'known-seats' starts from the seat heads of an ego trained with model.heads: seat; the ego in "
-            f"{str(trial)!r} {why}"
+            f"head_init 'known-seats' starts from the seat heads of an ego trained with model.heads: seat in a game of "
+            f"more than two seats; the ego in {str(trial)!r} {why}"
         )
     known = {mid: str(saved / mid) for mid in setup.weight_heads if (saved / mid).is_dir()}
     if not known:

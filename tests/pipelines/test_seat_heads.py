@@ -4,6 +4,8 @@ teams with members it trained with (`head_init: known-seats`)."""
 
 from __future__ import annotations
 
+import shutil
+
 import pandas as pd
 import pytest
 import torch
@@ -12,6 +14,7 @@ import yaml
 from rllib_conv.cli import main
 from rllib_conv.common.config_files import checked
 from rllib_conv.common.run_folders import SEAT_HEADS_DIR, trial_folders
+from rllib_conv.common.sealed import seal
 from rllib_conv.modules.packed.ego_stack import summed_head_state
 from rllib_conv.modules.packed.stacked_multi import STACK_ID
 from rllib_conv.partners.trained import load_rl_module
@@ -110,6 +113,17 @@ def test_an_ego_with_seat_heads_trains_saves_them_and_their_sums_and_adapts_to_n
         adapt_curve(cfg, str(trial), "H3+H4")
     as_team = trial_config(trial).model_copy(update={"model": ModelSettings(hidden=8)})
     with pytest.raises(
-        ValueError, match="known-seats' starts from the seat heads of an ego trained with model.heads: seat.*team heads"
+        ValueError,
+        match="known-seats' starts from the seat heads of an ego trained with model.heads: seat in a game of more than two seats.*team heads",
     ):
         known_seat_heads(trial, as_team, one.setup)
+    two_seats = resolve(ExperimentConfig(population="blocks-perm", **SEATS))
+    with pytest.raises(ValueError, match="plays a game of one partner seat"):
+        known_seat_heads(trial, trial_config(trial), two_seats)
+    older = tmp_path / "older"
+    shutil.copytree(trial, older)
+    checkpoint = older / last_checkpoint(trial).name
+    shutil.rmtree(checkpoint / SEAT_HEADS_DIR)
+    seal(checkpoint)  # as an ego exported before seat heads were saved apart
+    with pytest.raises(ValueError, match=r"keeps no seat heads \(trained before they were saved apart: train it again\)"):
+        known_seat_heads(older, trial_config(older), one.setup)
