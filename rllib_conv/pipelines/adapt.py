@@ -197,7 +197,8 @@ def adapt_curve(cfg: AdaptConfig, run: str, partner: str) -> Curve:
             "mapping": MappingSettings(),  # one partner: the training run's mapping does not apply
         }
     )
-    checkpoint = last_checkpoint(trial) / RL_MODULE_DIR
+    newest = last_checkpoint(trial)  # verified once, for every module read from it
+    checkpoint = newest / RL_MODULE_DIR
     load = {} if scratch else {TASK_ID: str(checkpoint / TASK_ID)}
     if method(exp.method).single_head and not scratch:
         load[AGG_HEAD_ID] = str(checkpoint / AGG_HEAD_ID)
@@ -212,29 +213,30 @@ def adapt_curve(cfg: AdaptConfig, run: str, partner: str) -> Curve:
     setup = setup_for(exp, pop, entries, team)
     check_game(cfg.head_init, game, setup.env_config, setup.ego_agent)
     if cfg.head_init == KNOWN_SEATS:
-        load |= known_seat_heads(trial, trained, setup)
+        load |= known_seat_heads(newest, trained, setup)
     return Curve(run, partner, setup, load, trained, label)
 
 
-def known_seat_heads(trial: Path, trained: ExperimentConfig, setup: EgoSetup) -> dict[str, str]:
-    """The seat heads of `setup`'s new team that the ego in `trial` trained (the member, in the same seat): module ID -> saved
-    head (`head_init: known-seats`); ValueError if the ego has no seat heads or knows no member there."""
-    saved = last_checkpoint(trial) / SEAT_HEADS_DIR
-    if trained.model.heads != "seat" or not setup.seat_heads or not saved.is_dir():
-        if trained.model.heads != "seat":
-            why = "has team heads"
-        elif not setup.seat_heads:
-            why = "plays a game of one partner seat (its heads are per partner)"
-        else:
-            why = "keeps no seat heads (trained before they were saved apart: train it again)"
+def known_seat_heads(checkpoint: Path, trained: ExperimentConfig, setup: EgoSetup) -> dict[str, str]:
+    """The seat heads of `setup`'s new team that the ego of `checkpoint` (its verified last one) trained (the member, in
+    the same seat): module ID -> saved head (`head_init: known-seats`); ValueError if it has none or knows no member there."""
+    saved, trial = checkpoint / SEAT_HEADS_DIR, str(checkpoint.parent)
+    why = None
+    if trained.model.heads != "seat":
+        why = "has team heads"
+    elif not setup.seat_heads:
+        why = "plays a game of one partner seat (its heads are per partner)"
+    elif not saved.is_dir():
+        why = "keeps no seat heads (trained before they were saved apart: train it again)"
+    if why is not None:
         raise ValueError(
             f"head_init 'known-seats' starts from the seat heads of an ego trained with model.heads: seat in a game of "
-            f"more than two seats; the ego in {str(trial)!r} {why}"
+            f"more than two seats; the ego in {trial!r} {why}"
         )
     known = {mid: str(saved / mid) for mid in setup.weight_heads if (saved / mid).is_dir()}
     if not known:
         raise ValueError(
-            f"head_init 'known-seats': no member of team {team_name(setup.teams[0])!r} trained with the ego in {str(trial)!r} "
+            f"head_init 'known-seats': no member of team {team_name(setup.teams[0])!r} trained with the ego in {trial!r} "
             f"in its seat (its seat heads: {sorted(p.name for p in saved.iterdir())}); use head_init fresh"
         )
     return known

@@ -116,14 +116,14 @@ def test_an_ego_with_seat_heads_trains_saves_them_and_their_sums_and_adapts_to_n
         ValueError,
         match="known-seats' starts from the seat heads of an ego trained with model.heads: seat in a game of more than two seats.*team heads",
     ):
-        known_seat_heads(trial, as_team, one.setup)
+        known_seat_heads(last_checkpoint(trial), as_team, one.setup)
     two_seats = resolve(ExperimentConfig(population="blocks-perm", **SEATS))
     with pytest.raises(ValueError, match="plays a game of one partner seat"):
-        known_seat_heads(trial, trial_config(trial), two_seats)
+        known_seat_heads(last_checkpoint(trial), trial_config(trial), two_seats)
     older = tmp_path / "older"
     shutil.copytree(trial, older)
     checkpoint = older / last_checkpoint(trial).name
     shutil.rmtree(checkpoint / SEAT_HEADS_DIR)
     seal(checkpoint)  # as an ego exported before seat heads were saved apart
     with pytest.raises(ValueError, match=r"keeps no seat heads \(trained before they were saved apart: train it again\)"):
-        known_seat_heads(older, trial_config(older), one.setup)
+        known_seat_heads(checkpoint, trial_config(older), one.setup)
