@@ -25,6 +25,9 @@ class Partner(ABC):
     # Partners that learn from the other seat's moves during an episode (`observe_other`) set it: their
     # `action_probs` then hold at the evidence so far, so a game's exact return cannot score a whole episode by them.
     learns_in_play: ClassVar[bool] = False
+    # Partners whose `act_batch` rows are independent, given the partner's RNG, and that keep no state between moves
+    # (`start_episode` and `observe_other` do nothing) set it: `episodes.play_batched` may then play many games at once.
+    batchable: ClassVar[bool] = False
 
     def __init__(self, name: str) -> None:
         self.name = name

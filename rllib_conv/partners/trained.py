@@ -28,6 +28,7 @@ class PolicyPartner(Partner):
     """
 
     kind = "policy"
+    batchable = True  # a function of each row and the RNG: one forward pass can choose for many games
 
     def __init__(
         self, name: str, logits_fn: LogitsFn | None = None, greedy: bool = False, seed: int = 0, memo: bool = False

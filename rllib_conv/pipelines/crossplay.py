@@ -8,6 +8,7 @@ With A = B the diagonal is self-play and the rest shows what mismatched conventi
 
 from __future__ import annotations
 
+from functools import partial
 from pathlib import Path
 
 import matplotlib
@@ -21,7 +22,7 @@ from rllib_conv import envs  # noqa: E402
 from rllib_conv.partners.bandit import BanditConventionPartner  # noqa: E402
 from rllib_conv.partners.base import Partner  # noqa: E402
 from rllib_conv.partners.blocks import BlocksLeader  # noqa: E402
-from rllib_conv.partners.episodes import play_episodes  # noqa: E402
+from rllib_conv.partners.episodes import score_episodes  # noqa: E402
 from rllib_conv.partners.kinds import partner_from_spec  # noqa: E402
 from rllib_conv.partners.population import PartnerEntry, Population  # noqa: E402
 
@@ -44,9 +45,9 @@ def crossplay(a: Population, b: Population, episodes: int = 100, seed: int = 0) 
             f"populations {a.name!r} and {b.name!r} are for different games or seats: "
             f"{a.env} {a.env_config} seat {a.partner_agent} vs {b.env} {b.env_config} seat {b.partner_agent}"
         )
-    env = envs.make_scored(a.env, **a.env_config)
+    make_env = partial(envs.make_scored, a.env, **a.env_config)
     seats = a.partner_agents
-    ego_agent = a.ego_agent(env.possible_agents)
+    ego_agent = a.ego_agent(make_env().possible_agents)
     # In a game of more than two seats a column's member sits in every partner seat (one player each), so the
     # diagonal is still each member's self-play.
     partners_b = [(e.name, {seat: e.build() for seat in seats}) for e in b.partners]
@@ -54,7 +55,8 @@ def crossplay(a: Population, b: Population, episodes: int = 100, seed: int = 0) 
     for entry in a.partners:
         ego = counterpart_of(entry, a)
         rows[entry.name] = {
-            name: float(play_episodes(env, {ego_agent: ego, **seated}, episodes, seed).mean()) for name, seated in partners_b
+            name: float(score_episodes(make_env, {ego_agent: ego, **seated}, episodes, seed).mean())
+            for name, seated in partners_b
         }
     matrix = pd.DataFrame.from_dict(rows, orient="index")
     matrix.index.name = f"{a.name} ({ego_agent})"

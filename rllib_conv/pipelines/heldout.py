@@ -18,6 +18,7 @@ the unit the report's intervals are over.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -26,7 +27,7 @@ import pandas as pd
 from rllib_conv import envs
 from rllib_conv.common.run_folders import read_trial_config, trial_folders
 from rllib_conv.partners.base import Partner
-from rllib_conv.partners.episodes import play_episodes
+from rllib_conv.partners.episodes import score_episodes
 from rllib_conv.partners.population import PartnerEntry, Population
 from rllib_conv.pipelines.crossplay import counterpart_of
 from rllib_conv.pipelines.pair import seat
@@ -86,8 +87,8 @@ def play_heldout(agents: list[HeldoutAgent], partners: Population, episodes: int
     """Every player of every agent with every member of `partners` (in its seat) for `episodes` scored episodes."""
     if episodes < 1:
         raise ValueError(f"episodes must be at least 1, got {episodes}")
-    env = envs.make_scored(partners.env, **partners.env_config)
-    ego_agent = partners.ego_agent(env.possible_agents)
+    make_env = partial(envs.make_scored, partners.env, **partners.env_config)
+    ego_agent = partners.ego_agent(make_env().possible_agents)
     rows = []
     for agent in agents:
         if agent.partner_agent not in (None, partners.partner_agent):
@@ -98,7 +99,7 @@ def play_heldout(agents: list[HeldoutAgent], partners: Population, episodes: int
         for p in agent.players:
             # With several partner seats, every team of members (one per seat, in seat order; `a+b`).
             for name, members in partners.teams():
-                scores = play_episodes(env, {ego_agent: p.player, **partners.seated(members)}, episodes, seed)
+                scores = score_episodes(make_env, {ego_agent: p.player, **partners.seated(members)}, episodes, seed)
                 stderr = float(scores.std(ddof=1) / np.sqrt(len(scores))) if len(scores) > 1 else 0.0
                 rows.append([agent.label, p.seed, p.name, name, episodes, float(scores.mean()), stderr])
     return pd.DataFrame(rows, columns=HELDOUT_COLUMNS)

@@ -47,7 +47,7 @@ from rllib_conv.common.sealed import seal
 from rllib_conv.common.seeds import stream_seed
 from rllib_conv.envs.overcooked.env import HORIZON, OvercookedEnv
 from rllib_conv.envs.overcooked.human_data import LAYOUTS, cache_folder, trajectories
-from rllib_conv.partners.episodes import play_episodes
+from rllib_conv.partners.episodes import score_episodes
 from rllib_conv.partners.overcooked import PROXIES_DIR, PROXY_KINDS, population_name, proxies_folder
 from rllib_conv.partners.population import PartnerEntry, Population
 from rllib_conv.partners.trained import TrainedPolicyPartner
@@ -88,7 +88,6 @@ def human_return(frame: pd.DataFrame, horizon: int = HORIZON) -> float:
 
 def pair_return(layout: str, first: str, second: str, episodes: int, seed: int) -> float:
     """Mean sparse return of two proxy checkpoints (sampling), `first` in seat 0 for half the episodes, then swapped."""
-    env = OvercookedEnv(layout, shaping=0.0)
     half = episodes // 2
     scores = []
     for order, (a, b) in enumerate(((first, second), (second, first))):
@@ -96,7 +95,9 @@ def pair_return(layout: str, first: str, second: str, episodes: int, seed: int) 
             "player_0": TrainedPolicyPartner("a", a, greedy=False, seed=seed),
             "player_1": TrainedPolicyPartner("b", b, greedy=False, seed=seed + 1),
         }
-        scores.append(play_episodes(env, players, half, seed=stream_seed(seed, f"pair{order}")))
+        scores.append(
+            score_episodes(lambda: OvercookedEnv(layout, shaping=0.0), players, half, seed=stream_seed(seed, f"pair{order}"))
+        )
     return float(np.concatenate(scores).mean())
 
 

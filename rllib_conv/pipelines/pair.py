@@ -25,7 +25,7 @@ from rllib_conv.common.atomic_files import replaced_atomically
 from rllib_conv.common.run_folders import trial_folders
 from rllib_conv.modules.multi import TASK_ID
 from rllib_conv.partners.base import Partner
-from rllib_conv.partners.episodes import play_episodes
+from rllib_conv.partners.episodes import score_episodes
 from rllib_conv.partners.trained import PolicyPartner
 from rllib_conv.pipelines.pair_config import PairConfig, is_run, population_seat, split_seat, trained_game
 from rllib_conv.training.checkpoints import last_checkpoint
@@ -124,7 +124,7 @@ def pair(cfg: PairConfig) -> pd.DataFrame:
         )
     players = [s.player for s in seats]
     try:
-        scores = play_episodes(env, dict(zip(agents, players)), cfg.episodes, cfg.seed)
+        scores = score_episodes(lambda: envs.make_scored(game, **env_config), dict(zip(agents, players)), cfg.episodes, cfg.seed)
     except RuntimeError as exc:  # torch: a module built for another observation or action size
         raise ValueError(f"the seats do not fit {game} {env_config}: {' '.join(str(exc).split())}") from None
     exact_fn = envs.game(game).exact_return  # the bandit and blocks: from the players' own probabilities

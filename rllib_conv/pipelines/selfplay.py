@@ -47,6 +47,7 @@ import math
 import shutil
 import time
 from collections.abc import Sequence
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -73,7 +74,7 @@ from rllib_conv.envs.rllib_adapter import PettingZooMultiAgentEnv, RLlibGame, ga
 from rllib_conv.learners.marginal_learner import MarginalPPOLearner
 from rllib_conv.modules.multi import REPLICA_SEPARATOR, replica_id
 from rllib_conv.modules.task_module import TaskModule
-from rllib_conv.partners.episodes import play_episodes
+from rllib_conv.partners.episodes import score_episodes
 from rllib_conv.partners.population import PartnerEntry, Population, refuse_existing
 from rllib_conv.partners.trained import PolicyPartner
 from rllib_conv.pipelines.selfplay_config import SelfPlayConfig
@@ -239,12 +240,12 @@ def seat_partner(module: Any, module_id: str, greedy: bool, seed: int = 0) -> Po
 
 def selfplay_score(module: Any, cfg: SelfPlayConfig, episodes: int, seed: int, member: int | None = None) -> float:
     """Mean self-play score of the pair's (pair `member`'s) seat policies, acting as fixed partners would (`envs.make_scored`)."""
-    env = envs.make_scored(cfg.env, **cfg.env_config)
+    make_env = partial(envs.make_scored, cfg.env, **cfg.env_config)
     seats = {
         a: seat_partner(module, seat_module_id(cfg, a, member), cfg.greedy_partners, seed + i)
-        for i, a in enumerate(env.possible_agents)
+        for i, a in enumerate(make_env().possible_agents)
     }
-    return float(play_episodes(env, seats, episodes, seed).mean())
+    return float(score_episodes(make_env, seats, episodes, seed).mean())
 
 
 FCP_DIR = "fcp"  # a trial's partner-seat snapshots (`fcp: true`)

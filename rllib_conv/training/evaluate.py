@@ -13,7 +13,7 @@ from rllib_conv import envs
 from rllib_conv.common.run_folders import RL_MODULE_DIR
 from rllib_conv.modules.multi import ConventionMultiRLModule
 from rllib_conv.partners.base import Partner
-from rllib_conv.partners.episodes import play_episodes
+from rllib_conv.partners.episodes import score_episodes
 from rllib_conv.partners.trained import PolicyPartner, load_rl_module
 
 
@@ -89,10 +89,9 @@ def seated_return(
 ) -> dict[str, float]:
     """`player_return` for any number of seats: `players` gives the player of every agent of the game."""
     check_episodes(episodes, env_name, env_config)
-    env = envs.make_scored(env_name, **env_config)
     out = {"mean": math.nan, "stderr": math.nan}
     if episodes:
-        scores = play_episodes(env, players, episodes, seed)
+        scores = score_episodes(lambda: envs.make_scored(env_name, **env_config), players, episodes, seed)
         out = {
             "mean": float(scores.mean()),
             "stderr": float(scores.std(ddof=1) / np.sqrt(len(scores))) if len(scores) > 1 else 0.0,

@@ -1,0 +1,132 @@
+"""Scoring a series of episodes one game at a time (`play_episodes`) against games side by side (`play_batched`).
+
+Every evaluation of fixed players (an adaptation curve's points, `evaluate`, the held-out
+sets, self-play's gate, cross-play, `pair`) scores a series of episodes. Played one game at
+a time, each move is one forward pass of a network on one row; Hanabi's adapt stage spent
+~70% of its core-seconds there (200 episodes at each of a curve's ~45 points). `play_batched`
+steps up to 64 games together, one forward pass per seat and step. Per game, two networks
+the size of the game's ego (two hidden layers of the record's width, random weights,
+sampling) play `--episodes` episodes each way, alternating, medians of `--rounds`; with
+`--hanabi-run` (a `reproduce hanabi` folder past its train stage) also a trained ego's head
+with a trained self-play partner, as an adaptation curve's point plays them. Writes
+`benchmarks/results/batched_play.json`.
+
+    OMP_NUM_THREADS=1 python -m benchmarks.batched_play --hanabi-run /work/repro/h1/hanabi
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from benchmarks._common import median_seconds, write_result
+from rllib_conv import envs
+from rllib_conv.partners.episodes import episode_stream, play_batched, play_episodes
+from rllib_conv.partners.trained import PolicyPartner, TrainedPolicyPartner
+from rllib_conv.training.evaluate import ego_head_partner, load_module
+
+GAMES = {"bandit": {}, "blocks": {}, "hanabi": {}, "lbf": {"players": 3}, "overcooked": {}}
+
+
+def mlp_seat(name: str, obs_dim: int, actions: int, hidden: int, seed: int) -> PolicyPartner:
+    """A sampling player: two tanh layers of `hidden` units, random weights (seeded)."""
+    torch.manual_seed(seed)
+    net = torch.nn.Sequential(
+        torch.nn.Linear(obs_dim, hidden), torch.nn.Tanh(), torch.nn.Linear(hidden, hidden), torch.nn.Tanh(),
+        torch.nn.Linear(hidden, actions),
+    )  # fmt: skip
+    return PolicyPartner(name, lambda obs, mask: net(obs).masked_fill(mask == 0, -1e9), greedy=False, seed=seed)
+
+
+Case = tuple[functools.partial, Callable[[], dict[str, PolicyPartner]]]  # an env factory, a factory of fresh seats
+
+
+def random_network_case(game: str, env_config: dict) -> Case:
+    """`game` with a network of the ego's width in every seat."""
+    make = functools.partial(envs.make_scored, game, **env_config)
+    env, hidden = make(), envs.game(game).training.hidden
+
+    def seats() -> dict[str, PolicyPartner]:
+        return {
+            agent: mlp_seat(agent, env.observation_space(agent)["observation"].shape[0], env.action_space(agent).n, hidden, i)
+            for i, agent in enumerate(env.possible_agents)
+        }
+
+    return make, seats
+
+
+def trained_hanabi_case(run: Path) -> Case:
+    """The first ours (lam 0.5) ego of a Hanabi reproduction, its first head, with the population's last partner (a test one).
+
+    Fresh players per series, as an adaptation curve's point builds them: the ego's memo of probabilities per state
+    (`PolicyPartner(memo=True)`, one game at a time) starts empty."""
+    checkpoint = sorted(run.glob("runs/*__modular-lam0.5/point_0/seed=0/checkpoint_000000"))[0]
+    module = load_module(checkpoint)
+    population = checkpoint.parents[2].name.split("__")[0]
+    partner = sorted((run / "populations" / population / "partners").iterdir())[-1]
+    other = TrainedPolicyPartner(partner.name, str(partner), greedy=True)
+
+    def seats() -> dict[str, PolicyPartner]:
+        return {"player_0": ego_head_partner(module, module.head_ids()[0]), "player_1": other}
+
+    return functools.partial(envs.make_scored, "hanabi"), seats
+
+
+def measure(case: Case, episodes: int, rounds: int) -> dict[str, float]:
+    """Median seconds of a series one game at a time and batched, their ratio, and each one's mean score."""
+    make, seats = case
+    scores: dict[str, np.ndarray] = {}
+
+    def ways(name: str) -> Callable[[], None]:
+        def run() -> None:
+            play = play_episodes(make(), seats(), episodes) if name == "one_by_one" else play_batched(make, seats(), episodes)
+            scores[name] = play
+
+        return run
+
+    times = median_seconds({name: ways(name) for name in ("one_by_one", "batched")}, rounds)
+    moves = sum(episode_lengths(make, seats(), episodes))
+    return {
+        "episodes": episodes,
+        "moves_per_episode": moves / episodes,
+        "one_by_one_s": times["one_by_one"],
+        "batched_s": times["batched"],
+        "speedup": times["one_by_one"] / times["batched"],
+        "mean_one_by_one": float(scores["one_by_one"].mean()),
+        "mean_batched": float(scores["batched"].mean()),
+    }
+
+
+def episode_lengths(make: functools.partial, seats: dict, episodes: int) -> list[int]:
+    """The env steps of each episode of the series (one game at a time)."""
+    stream = episode_stream(make(), seats, 0)
+    return [steps for _, (_, steps) in zip(range(episodes), stream)]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--episodes", type=int, default=200, help="episodes per series (an adaptation point's default)")
+    parser.add_argument("--rounds", type=int, default=5, help="timed series per way, alternating")
+    parser.add_argument("--hanabi-run", type=Path, help="a `reproduce hanabi` game folder past its train stage")
+    args = parser.parse_args()
+    torch.set_num_threads(1)
+    cases = {f"{game}, random networks": random_network_case(game, env_config) for game, env_config in GAMES.items()}
+    if args.hanabi_run:
+        cases["hanabi, trained ego and partner"] = trained_hanabi_case(args.hanabi_run)
+    rows = {name: measure(case, args.episodes, args.rounds) for name, case in cases.items()}
+    print(f"{'case':34} {'moves/ep':>8} {'one by one s':>12} {'batched s':>9} {'speedup':>7} {'means':>13}")
+    for name, r in rows.items():
+        print(
+            f"{name:34} {r['moves_per_episode']:8.1f} {r['one_by_one_s']:12.3f} {r['batched_s']:9.3f} "
+            f"{r['speedup']:7.2f} {r['mean_one_by_one']:6.2f}/{r['mean_batched']:.2f}"
+        )
+    write_result("batched_play", {"episodes": args.episodes, "rounds": args.rounds, "cases": rows})
+
+
+if __name__ == "__main__":
+    main()
