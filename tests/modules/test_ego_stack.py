@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 import torch
 
-from rllib_conv.modules.packed.ego_stack import EgoStack, pad_rows, summed_head_state, unpad
+from rllib_conv.modules.packed import ego_stack as ego_stack_module
+from rllib_conv.modules.packed.ego_stack import EgoStack, group_runs, pad_rows, subset_linear, summed_head_state, unpad
 from rllib_conv.modules.partner_head import PartnerHeadModule
 from rllib_conv.modules.task_module import TaskModule
 
@@ -131,6 +132,37 @@ def test_head_values_pick_heads_by_flat_index() -> None:
     picked = ego.head_values(z, heads=torch.tensor([5, 0]))  # replica 1 head 2; replica 0 head 0
     torch.testing.assert_close(picked[0], plain_head(HEAD_SEEDS[1][2]).vf(z[0]).squeeze(-1))
     torch.testing.assert_close(picked[1], plain_head(HEAD_SEEDS[0][0]).vf(z[1]).squeeze(-1))
+
+
+def test_group_runs_splits_ids_into_consecutive_runs() -> None:
+    assert group_runs([0, 1, 2, 5, 6, 2, 2, 3]) == [(0, 0, 3), (3, 5, 2), (5, 2, 1), (6, 2, 2)]
+    assert group_runs([]) == []
+
+
+@pytest.mark.parametrize("groups", [[0, 2, 4], [1, 2, 3, 4], [5, 0, 1, 1], [3]])
+def test_a_subset_of_wide_layers_on_views_gives_the_products_of_the_copied_weights(groups: list[int]) -> None:
+    """Layers of 256 x 256 and more run on views of the weights, one matmul per run: the very numbers of the copy."""
+    gen = torch.Generator().manual_seed(0)
+    weight, bias = torch.randn(6, 256, 256, generator=gen), torch.randn(6, 256, generator=gen)
+    x = torch.randn(len(groups), 3, 256, generator=gen)
+    picked = torch.tensor(groups)
+    want = torch.baddbmm(bias[picked].unsqueeze(1), x, weight[picked].transpose(1, 2))
+    assert weight[0].numel() >= ego_stack_module.VIEWS_FROM
+    assert torch.equal(subset_linear(x, weight, bias, picked), want)
+
+
+@pytest.mark.parametrize("views_from", [0, 10**9])
+def test_acting_on_a_subset_of_heads_and_replicas_is_the_same_either_way(monkeypatch, views_from: int) -> None:
+    """The stack's subset forward passes (acting) on views and on copies: the same as the plain modules."""
+    monkeypatch.setattr(ego_stack_module, "VIEWS_FROM", views_from)
+    ego = stack()
+    obs = rows(groups=3)
+    task = ego.task_forward(obs, None, replicas=torch.tensor([1, 0, 1]))
+    for g, r in enumerate([1, 0, 1]):
+        torch.testing.assert_close(task.logits[g], plain_task(TASK_SEEDS[r]).policy(obs[g], None).logits)
+    picked = ego.head_values(task.z, heads=torch.tensor([5, 0, 4]))  # replica 1 head 2, replica 0 head 0, replica 1 head 1
+    for g, seed in enumerate([HEAD_SEEDS[1][2], HEAD_SEEDS[0][0], HEAD_SEEDS[1][1]]):
+        torch.testing.assert_close(picked[g], plain_head(seed).vf(task.z[g]).squeeze(-1))
 
 
 # Seat heads (`model.heads: seat`): 4 team heads over the 3 weight heads, two seats each (the last repeats one).

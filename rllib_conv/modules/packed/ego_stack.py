@@ -55,6 +55,34 @@ def _linear(x: torch.Tensor, weight: torch.Tensor, bias: torch.Tensor) -> torch.
     return torch.baddbmm(bias.unsqueeze(1), x, weight.transpose(1, 2))
 
 
+# From this many weights per group (a 256 x 256 layer) a subset of stacked layers runs as one matmul per run of
+# consecutive groups on views of the weights, not on a copy of the picked ones: an acting step of a Hanabi ego uses
+# some of its 500 x 500 heads, and copying them was 19% of a training trial (`benchmarks/subset_layers.py`); on
+# smaller layers the copy costs less than the extra calls. The same products either way.
+VIEWS_FROM = 256 * 256
+
+
+def group_runs(groups: list[int]) -> list[tuple[int, int, int]]:
+    """Runs of consecutive ids in `groups`: (position in `groups`, first id, length) each."""
+    runs: list[tuple[int, int, int]] = []
+    for i, g in enumerate(groups):
+        if runs and g == runs[-1][1] + runs[-1][2]:
+            runs[-1] = (runs[-1][0], runs[-1][1], runs[-1][2] + 1)
+        else:
+            runs.append((i, g, 1))
+    return runs
+
+
+def subset_linear(x: torch.Tensor, weight: torch.Tensor, bias: torch.Tensor, groups: torch.Tensor | None) -> torch.Tensor:
+    """`_linear` of x [len(groups), N, in] through the stacked layers `groups` of weight [G, out, in] (None: all G in order)."""
+    if groups is None:
+        return _linear(x, weight, bias)
+    if weight[0].numel() < VIEWS_FROM:
+        return _linear(x, weight.index_select(0, groups), bias.index_select(0, groups))
+    parts = [_linear(x[i : i + n], weight[g : g + n], bias[g : g + n]) for i, g, n in group_runs(groups.tolist())]
+    return parts[0] if len(parts) == 1 else torch.cat(parts)
+
+
 def summed_head_state(states: list[dict[str, torch.Tensor]]) -> dict[str, torch.Tensor]:
     """One `PartnerHeadModule` state, `hidden` S times the members', whose outputs are the sum of the S heads `states`.
 
@@ -208,23 +236,23 @@ class EgoStack(TorchRLModule):
         Group g runs replica `replicas[g]`'s task module (default: all K replicas, in order).
         """
 
-        def p(layer: str, part: str) -> torch.Tensor:
-            t = getattr(self, _name("task", layer, part))
-            return t if replicas is None else t.index_select(0, replicas)
+        def layer_of(x: torch.Tensor, layer: str) -> torch.Tensor:
+            weight, bias = (getattr(self, _name("task", layer, part)) for part in ("weight", "bias"))
+            return subset_linear(x, weight, bias, replicas)
 
         h = obs
         for layer in TASK_POLICY:
-            h = torch.relu(_linear(h, p(layer, "weight"), p(layer, "bias")))
+            h = torch.relu(layer_of(h, layer))
         z = h
         if self._oracle is not None:
             flat = obs.detach().reshape(-1, obs.shape[-1]).cpu().numpy()
             optimal = torch.as_tensor(self._oracle(flat), device=obs.device).reshape(*obs.shape[:-1], -1)
             logits = torch.clamp(torch.log(optimal), min=torch.finfo(obs.dtype).min)
         else:
-            logits = _linear(z, p(TASK_LOGITS_LAYER, "weight"), p(TASK_LOGITS_LAYER, "bias"))
+            logits = layer_of(z, TASK_LOGITS_LAYER)
         v = obs
         for i, layer in enumerate(TASK_VALUE):
-            v = _linear(v, p(layer, "weight"), p(layer, "bias"))
+            v = layer_of(v, layer)
             if i < len(TASK_VALUE) - 1:
                 v = torch.relu(v)
         return StackedTask(z, masked_logits(logits, mask), v.squeeze(-1))
@@ -246,10 +274,7 @@ class EgoStack(TorchRLModule):
         x = z
         for i, layer in enumerate(layers):
             w, b = getattr(self, _name(kind, layer, "weight")), getattr(self, _name(kind, layer, "bias"))
-            w, b = w.reshape(-1, *w.shape[2:]), b.reshape(-1, *b.shape[2:])
-            if heads is not None:
-                w, b = w.index_select(0, heads), b.index_select(0, heads)
-            x = _linear(x, w, b)
+            x = subset_linear(x, w.reshape(-1, *w.shape[2:]), b.reshape(-1, *b.shape[2:]), heads)
             if i < len(layers) - 1:
                 x = torch.relu(x)
         return x
