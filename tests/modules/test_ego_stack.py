@@ -134,6 +134,14 @@ def test_head_values_pick_heads_by_flat_index() -> None:
     torch.testing.assert_close(picked[1], plain_head(HEAD_SEEDS[0][0]).vf(z[1]).squeeze(-1))
 
 
+def test_task_forward_without_the_value_tower_gives_the_same_policy() -> None:
+    ego = stack()
+    obs, mask = rows(), torch.ones(2, 7, ACTIONS)
+    full, lean = ego.task_forward(obs, mask), ego.task_forward(obs, mask, value=False)
+    assert lean.value is None and full.value is not None
+    assert torch.equal(lean.z, full.z) and torch.equal(lean.logits, full.logits)
+
+
 def test_group_runs_splits_ids_into_consecutive_runs() -> None:
     assert group_runs([0, 1, 2, 5, 6, 2, 2, 3]) == [(0, 0, 3), (3, 5, 2), (5, 2, 1), (6, 2, 2)]
     assert group_runs([]) == []

@@ -105,11 +105,11 @@ def summed_head_state(states: list[dict[str, torch.Tensor]]) -> dict[str, torch.
 
 
 class StackedTask(NamedTuple):
-    """The task modules' output on rows [K, N]: latent z, masked task logits, task value."""
+    """The task modules' output on rows [K, N]: latent z, masked task logits, task value (None where not asked for)."""
 
     z: torch.Tensor
     logits: torch.Tensor
-    value: torch.Tensor
+    value: torch.Tensor | None
 
 
 class EgoStack(TorchRLModule):
@@ -230,10 +230,14 @@ class EgoStack(TorchRLModule):
 
     # --- batched forward passes ----------------------------------------------------------------------------
 
-    def task_forward(self, obs: torch.Tensor, mask: torch.Tensor | None, replicas: torch.Tensor | None = None) -> StackedTask:
+    def task_forward(
+        self, obs: torch.Tensor, mask: torch.Tensor | None, replicas: torch.Tensor | None = None, value: bool = True
+    ) -> StackedTask:
         """Task modules on rows: obs [G, N, d], mask [G, N, A] -> z [G, N, z], logits [G, N, A], value [G, N].
 
         Group g runs replica `replicas[g]`'s task module (default: all K replicas, in order).
+        `value=False` leaves out the value tower (`value` is then None): acting reads no values,
+        and at Hanabi's width the tower is as much arithmetic as the policy's.
         """
 
         def layer_of(x: torch.Tensor, layer: str) -> torch.Tensor:
@@ -250,6 +254,8 @@ class EgoStack(TorchRLModule):
             logits = torch.clamp(torch.log(optimal), min=torch.finfo(obs.dtype).min)
         else:
             logits = layer_of(z, TASK_LOGITS_LAYER)
+        if not value:
+            return StackedTask(z, masked_logits(logits, mask), None)
         v = obs
         for i, layer in enumerate(TASK_VALUE):
             v = layer_of(v, layer)

@@ -57,13 +57,13 @@ class HeadView(TorchRLModule, ValueFunctionAPI):
         """This head's position among the stack's K x H heads."""
         return self.replica * self.stack.heads + self.head
 
-    def _rows(self, batch: dict[str, Any]) -> tuple[Any, torch.Tensor, torch.Tensor | None]:
+    def _rows(self, batch: dict[str, Any], value: bool = True) -> tuple[Any, torch.Tensor, torch.Tensor | None]:
         obs, mask = split_obs(batch)
         replica = torch.tensor([self.replica])
-        return self.stack.task_forward(obs[None], None if mask is None else mask[None], replica), obs, mask
+        return self.stack.task_forward(obs[None], None if mask is None else mask[None], replica, value), obs, mask
 
     def _forward(self, batch: dict[str, Any], **kwargs: Any) -> dict[str, Any]:
-        task, _, mask = self._rows(batch)
+        task, _, mask = self._rows(batch, value=False)
         out = self.stack._heads("head_pi", HEAD_POLICY, task.z, torch.tensor([self.index]))
         logits = self.stack.policy_logits(out[0], task.logits[0], mask)
         return {Columns.ACTION_DIST_INPUTS: logits}
@@ -130,7 +130,7 @@ class StackedEgoMultiRLModule(SharedWiringMultiRLModule):
         obs, sizes = pad_rows([torch.cat([rows[mid][0] for mid in per_replica[r]]) for r in replicas])
         has_mask = all(rows[mid][1] is not None for mid in order)
         mask = pad_rows([torch.cat([rows[mid][1] for mid in per_replica[r]]) for r in replicas])[0] if has_mask else None
-        task = stack.task_forward(obs, mask, _subset(replicas, stack.replicas))
+        task = stack.task_forward(obs, mask, _subset(replicas, stack.replicas), value=False)
         z_parts, l_parts, m_parts, lengths = [], [], [], {}
         for g, r in enumerate(replicas):
             start = 0
