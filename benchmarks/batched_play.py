@@ -8,7 +8,9 @@ steps up to 64 games together, one forward pass per seat and step. Per game, two
 the size of the game's ego (two hidden layers of the record's width, random weights,
 sampling) play `--episodes` episodes each way, alternating, medians of `--rounds`; with
 `--hanabi-run` (a `reproduce hanabi` folder past its train stage) also a trained ego's head
-with a trained self-play partner, as an adaptation curve's point plays them. Writes
+with a trained self-play partner, as an adaptation curve's point plays them; and a network ego
+with scripted partners (blocks, Hanabi, Level-Based Foraging), whose rules still run one game
+at a time inside a batched series. Writes
 `benchmarks/results/batched_play.json`.
 
     OMP_NUM_THREADS=1 python -m benchmarks.batched_play --hanabi-run /work/repro/h1/hanabi
@@ -25,7 +27,7 @@ import numpy as np
 import torch
 
 from benchmarks._common import median_seconds, write_result
-from rllib_conv import envs
+from rllib_conv import envs, partners
 from rllib_conv.partners.episodes import episode_stream, play_batched, play_episodes
 from rllib_conv.partners.trained import PolicyPartner, TrainedPolicyPartner
 from rllib_conv.training.evaluate import ego_head_partner, load_module
@@ -56,6 +58,24 @@ def random_network_case(game: str, env_config: dict) -> Case:
             agent: mlp_seat(agent, env.observation_space(agent)["observation"].shape[0], env.action_space(agent).n, hidden, i)
             for i, agent in enumerate(env.possible_agents)
         }
+
+    return make, seats
+
+
+SCRIPTED = ("blocks-perm", "hanabi-scripted", "lbf-heuristics")  # populations whose first member is scripted
+
+
+def scripted_case(population: str) -> Case:
+    """A network of the ego's width in the ego's seat, the population's first (scripted) member in every partner seat."""
+    pop = partners.get(population)
+    make = functools.partial(envs.make_scored, pop.env, **pop.env_config)
+    env, hidden = make(), envs.game(pop.env).training.hidden
+    ego = next(a for a in env.possible_agents if a not in pop.partner_agents)
+    obs_dim, actions = env.observation_space(ego)["observation"].shape[0], env.action_space(ego).n
+
+    def seats() -> dict[str, PolicyPartner]:
+        member = pop.partners[0].build()
+        return {a: mlp_seat(a, obs_dim, actions, hidden, 0) if a == ego else member for a in env.possible_agents}
 
     return make, seats
 
@@ -116,13 +136,14 @@ def main() -> None:
     args = parser.parse_args()
     torch.set_num_threads(1)
     cases = {f"{game}, random networks": random_network_case(game, env_config) for game, env_config in GAMES.items()}
+    cases |= {f"{population}: network ego, scripted partners": scripted_case(population) for population in SCRIPTED}
     if args.hanabi_run:
         cases["hanabi, trained ego and partner"] = trained_hanabi_case(args.hanabi_run)
     rows = {name: measure(case, args.episodes, args.rounds) for name, case in cases.items()}
-    print(f"{'case':34} {'moves/ep':>8} {'one by one s':>12} {'batched s':>9} {'speedup':>7} {'means':>13}")
+    print(f"{'case':48} {'moves/ep':>8} {'one by one s':>12} {'batched s':>9} {'speedup':>7} {'means':>13}")
     for name, r in rows.items():
         print(
-            f"{name:34} {r['moves_per_episode']:8.1f} {r['one_by_one_s']:12.3f} {r['batched_s']:9.3f} "
+            f"{name:48} {r['moves_per_episode']:8.1f} {r['one_by_one_s']:12.3f} {r['batched_s']:9.3f} "
             f"{r['speedup']:7.2f} {r['mean_one_by_one']:6.2f}/{r['mean_batched']:.2f}"
         )
     write_result("batched_play", {"episodes": args.episodes, "rounds": args.rounds, "cases": rows})

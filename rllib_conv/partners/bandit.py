@@ -22,6 +22,7 @@ class BanditConventionPartner(Partner):
     """Pulls `arms[context]` in every context (the context is the one-hot observation)."""
 
     kind = "bandit_convention"
+    batchable = True  # a function of each observation (and its own RNG): it may choose for many games at once
     deterministic = True
 
     def __init__(self, name: str, arms: list[int]) -> None:

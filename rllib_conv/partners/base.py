@@ -85,6 +85,8 @@ class SampledPartner(Partner):
     game's exact return and best-response bound score them without sampling.
     """
 
+    batchable = True  # defined by its action_probs: rows drawn independently from the partner's RNG
+
     def __init__(self, name: str) -> None:
         super().__init__(name)
         self._rng = np.random.default_rng()

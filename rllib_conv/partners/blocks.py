@@ -53,6 +53,7 @@ class PermutationPartner(Partner):
     """P2 (blue): on its first move, places blue on `perm[red's cell]`; otherwise passes."""
 
     kind = "blocks_permutation"
+    batchable = True  # a function of each observation (and its own RNG): it may choose for many games at once
     deterministic = True
 
     def __init__(self, name: str, perm: list[int]) -> None:
@@ -114,6 +115,7 @@ class BlocksLeader(Partner):
     """
 
     kind = "blocks_leader"
+    batchable = True  # a function of each observation (and its own RNG): it may choose for many games at once
     deterministic = True
 
     def __init__(self, name: str, perm: list[int], new_task: bool = False) -> None:

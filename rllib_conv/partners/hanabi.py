@@ -37,6 +37,7 @@ class RandomLegalPartner(Partner):
     """Uniformly random over the legal actions of any masked game (it never looks at the observation)."""
 
     kind = "random_legal"
+    batchable = True  # a function of each observation (and its own RNG): it may choose for many games at once
 
     def __init__(self, name: str = "random_legal", seed: int = 0) -> None:
         """Create the partner with its own RNG seeded by `seed`."""
@@ -82,6 +83,7 @@ class HanabiRulePartner(Partner):
     """
 
     kind = "hanabi_rule"
+    batchable = True  # a function of each observation (and its own RNG): it may choose for many games at once
     deterministic = True
 
     def __init__(self, name: str = "hanabi_rule", **game: int) -> None:

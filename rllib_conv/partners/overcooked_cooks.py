@@ -58,6 +58,7 @@ class ConventionCook(Partner):
     """A scripted cook with a convention (`role`, `pot`, `onions`); see the module docstring."""
 
     kind = "overcooked_cook"
+    batchable = True  # a function of each observation (and its own RNG): it may choose for many games at once
 
     def __init__(
         self, name: str, layout: str = "cramped_room", role: str = "both", pot: int = -1, onions: int = -1, seed: int = 0

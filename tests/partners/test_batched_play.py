@@ -71,15 +71,48 @@ def test_sampling_seats_score_the_exact_return() -> None:
     assert not np.array_equal(play_batched(make, seats, 4000, seed=12), scores)
 
 
+class Echo(PolicyPartner):
+    """A partner with state between moves: it repeats the other seat's last move where that is legal."""
+
+    batchable = False
+
+    def start_episode(self) -> None:
+        self.last = None
+
+    def observe_other(self, observation, action_mask, action, agent=None) -> None:
+        self.last = action
+
+    def act(self, observation: np.ndarray, action_mask: np.ndarray) -> int:
+        return self.last if self.last is not None and action_mask[self.last] else super().act(observation, action_mask)
+
+
 def test_score_episodes_plays_stateful_partners_one_by_one() -> None:
-    pop = partners.get("blocks-perm")
     make, seats = network_seats("blocks", greedy=False)
     ego, other = list(seats)
-    seats[other] = pop.partners[0].build()  # a scripted partner: not batchable
-    assert not seats[other].batchable
+    seats[other] = Echo("echo", seats[other].logits_fn, seed=4)
     np.testing.assert_array_equal(score_episodes(make, seats, 40, seed=2), play_episodes(make(), seats, 40, seed=2))
-    with pytest.raises(ValueError, match=repr(seats[other].name)):
+    with pytest.raises(ValueError, match="'echo'"):
         play_batched(make, seats, 40, seed=2)
+
+
+@pytest.mark.parametrize("population", ["blocks-perm", "bandit-s2-hand", "lbf-heuristics", "hanabi-scripted"])
+def test_scripted_partners_play_batched(population: str) -> None:
+    """The built-in scripted partners keep no state: batched, the deterministic ones play the very episodes."""
+    pop = partners.get(population)
+    make = functools.partial(envs.make_scored, pop.env, **pop.env_config)
+    env = make()
+    entry = pop.partners[0].build()
+    assert entry.batchable
+    ego = next(a for a in env.possible_agents if a not in pop.partner_agents)
+    obs_dim = env.observation_space(ego)["observation"].shape[0]
+    seats = {
+        a: entry if a != ego else PolicyPartner("net", LinearLogits(obs_dim, env.action_space(ego).n, 0), True)
+        for a in env.possible_agents
+    }
+    batched, one_by_one = play_batched(make, seats, 30, seed=5), play_episodes(make(), seats, 30, seed=5)
+    if entry.deterministic:
+        np.testing.assert_array_equal(batched, one_by_one)
+    assert batched.shape == (30,)
 
 
 def test_an_empty_series_and_a_missing_seat() -> None:
