@@ -107,8 +107,9 @@ def score_episodes(
 ) -> np.ndarray:
     """`play_episodes` on an env from `make_env`, or, where every seat is `batchable`, `play_batched`: the scores of a series.
 
-    The one entry point for scoring a series: the batched path is the same series wherever it applies (see
-    `play_batched`), and one policy call per step for up to `BATCH_WIDTH` games instead of one per move.
+    The one entry point for scoring a series: batched, greedy seats play the same episodes and sampling seats other
+    samples of the same distribution (see `play_batched`), with one policy call per step for up to `BATCH_WIDTH`
+    games instead of one per move.
     """
     if all(partner.batchable for partner in seats.values()):
         return play_batched(make_env, seats, num_episodes, seed)
