@@ -21,11 +21,16 @@ partner count, not on the partners). The floor is the plan's FLOPs / (cores x pe
 change to the training loop beats without changing the networks, the epochs or the budgets. It
 leaves out the partners' networks (self-play partners act through networks as large as the
 ego's task module), self-play, adaptation and evaluation: a lower bound of the train stage, and
-of the plan; `plan_train_floor_bf16_min` is the same at the bfloat16 peak. The machine (CPU
+of the plan; `plan_train_floor_bf16_min` is the same at the bfloat16 peak. With `--run` (one
+game's `reproduce` folder past its self-play stage) it also counts self-play as that run
+trained it (each pair's env steps x a pair's FLOPs per env step) and the adapt stage on its
+populations (every curve's budget x its ego's FLOPs per env step, the new partner its only
+one, lam 0); `plan_floor_min` is then the whole plan's floor but evaluation, written to
+`flop_floor_<game>_run.json`. The machine (CPU
 model, vector ISA) is in the result, as every benchmark's. Writes
 `benchmarks/results/flop_floor.json`, and per game the plan's rows under `plans`.
 
-    OMP_NUM_THREADS=1 .venv/bin/python -m benchmarks.flop_floor [--repeats 5] [--games bandit blocks hanabi] [--seeds 3]
+    OMP_NUM_THREADS=1 .venv/bin/python -m benchmarks.flop_floor [--repeats 5] [--games bandit blocks hanabi] [--seeds 3] [--run DIR]
 """
 
 from __future__ import annotations
@@ -38,6 +43,7 @@ from typing import Any
 import pandas as pd
 import ray
 import torch
+from ray.rllib.utils.metrics import ENV_RUNNER_RESULTS, NUM_ENV_STEPS_SAMPLED_LIFETIME
 from torch.utils.flop_counter import FlopCounterMode
 
 from benchmarks._common import median_seconds, write_result
@@ -48,7 +54,9 @@ from rllib_conv.common.resources import config_file
 from rllib_conv.common.run_folders import POPULATIONS_DIR
 from rllib_conv.partners.hanabi import RandomLegalPartner
 from rllib_conv.pipelines.plans import plan_for
-from rllib_conv.pipelines.reproduce import Reproduction
+from rllib_conv.pipelines.reproduce import ARGUMENTS, Reproduction, _merge
+from rllib_conv.pipelines.selfplay import build_selfplay_config
+from rllib_conv.pipelines.selfplay_config import SelfPlayConfig
 from rllib_conv.training.algorithm import Replica, build_ppo_config, packing_key
 from rllib_conv.training.ego_setup import resolve
 from rllib_conv.training.experiment import ExperimentConfig
@@ -131,7 +139,68 @@ def plan_flops(game: str, seeds: int, folder: Path) -> list[dict[str, Any]]:
     return rows
 
 
-def measure(game: str, repeats: int, folder: Path, seeds: int) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+def selfplay_flops(game: str, run: Path) -> dict[str, float]:
+    """The self-play stage as `run` (a `reproduce` game folder past it) trained it: its pairs' env steps x a pair's FLOPs per env step."""
+    plan = plan_for(game)
+    base = config_files.load(config_file(f"selfplay_{game}.yaml"), schema=SelfPlayConfig)
+    cfg = config_files.checked(_merge(base, plan.selfplay[0]), SelfPlayConfig, ARGUMENTS).first.resolve()
+    algo = build_selfplay_config(cfg).build_algo()
+    try:
+        before = algo.train()[ENV_RUNNER_RESULTS][NUM_ENV_STEPS_SAMPLED_LIFETIME]
+        per_iteration = algo.train()[ENV_RUNNER_RESULTS][NUM_ENV_STEPS_SAMPLED_LIFETIME] - before
+        sample, episodes = flops(algo.env_runner.sample)
+        update, _ = flops(fixed_update(algo, episodes))
+    finally:
+        algo.stop()
+    reports = sorted(run.glob(f"{POPULATIONS_DIR}/*/selfplay_report.csv"))
+    steps = int(sum(pd.read_csv(r)["env_steps"].sum() for r in reports))
+    per_step = (sample + update) / per_iteration
+    return {
+        "pairs": sum(len(pd.read_csv(r)) for r in reports),
+        "env_steps": steps,
+        "mflop_per_step": per_step / 1e6,
+        "tflop": steps * per_step / 1e12,
+    }
+
+
+def adapt_flops(game: str, seeds: int, run: Path, folder: Path) -> dict[str, float]:
+    """The adapt stage of the plan on `run`'s populations: every curve's env steps x its ego's FLOPs per env step.
+
+    A curve trains its ego with the new partner as its only partner and lam 0, so each base
+    method's arithmetic is counted on a one-partner stand-in population; evaluation is left out.
+    """
+    plan = plan_for(game, seeds=seeds)
+    repro = Reproduction(plan, run, log=lambda _: None)
+    experiments = {e["name"]: e for e in repro.training()}
+    one = partners.from_partners("stand-in-one", game, {}, [RandomLegalPartner("sp00")], [])
+    stand_in = str(one.save(folder / "stand-in-one.json"))
+    curves, tflop, cache = 0, 0.0, {}
+    for target, _, settings, egos_of in repro.adapt_jobs():
+        names = repro.adapt_partners(target)
+        raw = {k: v for k, v in experiments[egos_of].items() if k not in ("name", "seed", "population")}
+        if raw.get("method") == "modular":
+            raw["lam"] = 0.0
+        exps = [resolve(ExperimentConfig.model_validate({**raw, "population": stand_in, "seed": s})) for s in range(SEEDS)]
+        key = packing_key(exps[0])
+        if key not in cache:
+            algo = build_ppo_config([Replica(e) for e in exps]).build_algo()
+            try:
+                sample, update, steps, _ = iteration_flops(algo)
+            finally:
+                algo.stop()
+            cache[key] = (sample + update) / steps
+        budget = {**plan.adapt_overrides, **settings}.get("steps") or envs.game(game).adapt_defaults(
+            exps[0].exp.ppo.rollout_per_partner
+        ).steps  # as `adapt.protocol` reads it
+        n = len(plan.seeds) * len(names)
+        curves += n
+        tflop += n * budget * cache[key] / 1e12
+    return {"curves": curves, "tflop": tflop}
+
+
+def measure(
+    game: str, repeats: int, folder: Path, seeds: int, run: Path | None = None
+) -> tuple[dict[str, Any], list[dict[str, Any]]]:
     """FLOPs per env step and achieved GFLOP/s of one iteration of `ours` for `game`, and the plan's floor (with its rows)."""
     config = ours(population_of(game, folder), SEEDS)
     algo = config.build_algo()
@@ -169,6 +238,21 @@ def measure(game: str, repeats: int, folder: Path, seeds: int) -> tuple[dict[str
             "trial_steps_per_s_floor": peak * 1e9 / ((sample_flops + update_flops) / steps),
         }
     )
+    if run is not None:  # the stages around training, as that run needed them; at the ego's peak (a lower bound)
+        selfplay, adapt = selfplay_flops(game, run), adapt_flops(game, seeds, run, folder)
+        whole = plan_flop + (selfplay["tflop"] + adapt["tflop"]) * 1e12
+        row.update(
+            {
+                "run": str(run),
+                "selfplay_env_steps": selfplay["env_steps"],
+                "selfplay_mflop_per_step": selfplay["mflop_per_step"],
+                "selfplay_floor_min": selfplay["tflop"] * 1e12 / (cores * peak * 1e9) / 60,
+                "adapt_curves": adapt["curves"],
+                "adapt_floor_min": adapt["tflop"] * 1e12 / (cores * peak * 1e9) / 60,
+                "plan_floor_min": whole / (cores * peak * 1e9) / 60,
+                "plan_floor_bf16_min": whole / (cores * peak_bf16 * 1e9) / 60,
+            }
+        )
     return row, plan_rows
 
 
@@ -177,18 +261,26 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=5, help="timed calls of each of sampling and the update")
     parser.add_argument("--games", nargs="+", default=["bandit", "blocks", "hanabi"], choices=["bandit", "blocks", "hanabi"])
     parser.add_argument("--seeds", type=int, default=3, help="seeds of the plans whose floor is counted")
+    parser.add_argument(
+        "--run",
+        type=Path,
+        help="a `reproduce` game folder of the one game given, past its self-play stage: also count self-play as it "
+        "trained there and the adapt stage on its populations (evaluation left out)",
+    )
     args = parser.parse_args()
+    if args.run is not None and (len(args.games) != 1 or not (args.run / POPULATIONS_DIR).is_dir()):
+        parser.error(f"--run {args.run}: needs one --games and a reproduce game folder with {POPULATIONS_DIR}/")
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
     rows, plans = [], {}
     with tempfile.TemporaryDirectory() as tmp:
         for game in args.games:
-            row, plans[game] = measure(game, args.repeats, Path(tmp), args.seeds)
+            row, plans[game] = measure(game, args.repeats, Path(tmp), args.seeds, args.run)
             rows.append(row)
             print(pd.DataFrame(plans[game]).to_string(index=False, float_format="{:.3g}".format), flush=True)
             print(pd.DataFrame(rows).to_string(index=False, float_format="{:.3g}".format), flush=True)
     ray.shutdown()
     result = {"seeds_per_trial": SEEDS, "plan_seeds": args.seeds, "repeats": args.repeats, "rows": rows, "plans": plans}
-    print(f"wrote {write_result('flop_floor', result)}")
+    print(f"wrote {write_result('flop_floor' if args.run is None else f'flop_floor_{args.games[0]}_run', result)}")
 
 
 if __name__ == "__main__":
