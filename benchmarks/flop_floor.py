@@ -106,6 +106,22 @@ def _stand_in(game: str, entry: dict[str, Any], folder: Path) -> str:
     return str(pop.save(folder / f"stand-in-{entry['name']}.json"))
 
 
+def ego_flops_per_step(settings: dict[str, Any], cache: dict[Any, float]) -> tuple[float, Any]:
+    """FLOPs per env step of an experiment's egos (`settings` without seed), `SEEDS` packed; cached by packing key.
+
+    Returns them and the first seed's `EgoSetup`."""
+    exps = [resolve(ExperimentConfig.model_validate({**settings, "seed": s})) for s in range(SEEDS)]
+    key = packing_key(exps[0])
+    if key not in cache:
+        algo = build_ppo_config([Replica(e) for e in exps]).build_algo()
+        try:
+            sample, update, steps, _ = iteration_flops(algo)
+        finally:
+            algo.stop()
+        cache[key] = (sample + update) / steps
+    return cache[key], exps[0]
+
+
 def plan_flops(game: str, seeds: int, folder: Path) -> list[dict[str, Any]]:
     """One row per experiment the full plan of `game` trains: its egos' env steps and FLOPs per env step (see the module docstring)."""
     plan = plan_for(game, seeds=seeds)
@@ -117,23 +133,15 @@ def plan_flops(game: str, seeds: int, folder: Path) -> list[dict[str, Any]]:
         if population in stand_ins:
             population = _stand_in(game, stand_ins[population], folder)
         settings = {k: v for k, v in raw.items() if k not in ("name", "seed")}
-        exps = [resolve(ExperimentConfig.model_validate({**settings, "population": population, "seed": s})) for s in range(SEEDS)]
-        key = packing_key(exps[0])
-        if key not in cache:
-            algo = build_ppo_config([Replica(e) for e in exps]).build_algo()
-            try:
-                sample, update, steps, _ = iteration_flops(algo)
-            finally:
-                algo.stop()
-            cache[key] = (sample + update) / steps
+        per_step, ego = ego_flops_per_step({**settings, "population": population}, cache)
         egos_steps = repro.train_steps(raw) * len(plan.seeds)
         rows.append(
             {
                 "experiment": raw["name"],
-                "partners": len(exps[0].train),
+                "partners": len(ego.train),
                 "ego_env_steps": egos_steps,
-                "mflop_per_step": cache[key] / 1e6,
-                "tflop": egos_steps * cache[key] / 1e12,
+                "mflop_per_step": per_step / 1e6,
+                "tflop": egos_steps * per_step / 1e12,
             }
         )
     return rows
@@ -180,21 +188,13 @@ def adapt_flops(game: str, seeds: int, run: Path, folder: Path) -> dict[str, flo
         raw = {k: v for k, v in experiments[egos_of].items() if k not in ("name", "seed", "population")}
         if raw.get("method") == "modular":
             raw["lam"] = 0.0
-        exps = [resolve(ExperimentConfig.model_validate({**raw, "population": stand_in, "seed": s})) for s in range(SEEDS)]
-        key = packing_key(exps[0])
-        if key not in cache:
-            algo = build_ppo_config([Replica(e) for e in exps]).build_algo()
-            try:
-                sample, update, steps, _ = iteration_flops(algo)
-            finally:
-                algo.stop()
-            cache[key] = (sample + update) / steps
+        per_step, ego = ego_flops_per_step({**raw, "population": stand_in}, cache)
         budget = {**plan.adapt_overrides, **settings}.get("steps") or envs.game(game).adapt_defaults(
-            exps[0].exp.ppo.rollout_per_partner
+            ego.exp.ppo.rollout_per_partner
         ).steps  # as `adapt.protocol` reads it
         n = len(plan.seeds) * len(names)
         curves += n
-        tflop += n * budget * cache[key] / 1e12
+        tflop += n * budget * per_step / 1e12
     return {"curves": curves, "tflop": tflop}
 
 
