@@ -26,6 +26,15 @@ def _with_mask(env: AECEnv | ParallelEnv, agent: str, obs) -> tuple[np.ndarray, 
     return vec, np.ones(env.action_space(agent).n, dtype=np.int8) if mask is None else mask
 
 
+def _seat(env: AECEnv | ParallelEnv, seats: dict[str, Partner], seed: int) -> None:
+    """Check that `seats` gives a partner for every agent of `env` and seed seat i with `seat_seed(seed, i)`."""
+    missing = set(env.possible_agents) - set(seats)
+    if missing:
+        raise ValueError(f"seats must give a partner for every agent; missing {sorted(missing)}")
+    for i, partner in enumerate(seats.values()):
+        partner.seed(seat_seed(seed, i))
+
+
 def _tell_others(seats: dict[str, Partner], agent: str, observation: np.ndarray, mask: np.ndarray, action: int) -> None:
     for other, partner in seats.items():
         if other != agent:
@@ -48,11 +57,7 @@ def episode_stream(
     `observe_other` after each move of another seat (what a partner adapting during play needs).
     `on_infos`, if given, hears every step's infos by agent (in AEC games, the mover's as it observes).
     """
-    missing = set(env.possible_agents) - set(seats)
-    if missing:
-        raise ValueError(f"seats must give a partner for every agent; missing {sorted(missing)}")
-    for i, partner in enumerate(seats.values()):
-        partner.seed(seat_seed(seed, i))
+    _seat(env, seats, seed)
     first = env.possible_agents[0]
     for ep in itertools.count():
         score, steps = 0.0, 0
@@ -138,11 +143,7 @@ def play_batched(
     games = [make_env() for _ in range(min(width, num_episodes))]
     if not games:
         return scores
-    missing = set(games[0].possible_agents) - set(seats)
-    if missing:
-        raise ValueError(f"seats must give a partner for every agent; missing {sorted(missing)}")
-    for i, partner in enumerate(seats.values()):
-        partner.seed(seat_seed(seed, i))
+    _seat(games[0], seats, seed)
     first, aec = games[0].possible_agents[0], isinstance(games[0], AECEnv)
     episode = [-1] * len(games)  # the episode each game plays; -1 once the series needs no more
     observations: list[dict] = [{} for _ in games]  # parallel games: each agent's last observation
