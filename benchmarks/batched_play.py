@@ -10,7 +10,7 @@ sampling) play `--episodes` episodes each way, alternating, medians of `--rounds
 `--hanabi-run` (a `reproduce hanabi` folder past its train stage) also a trained ego's head
 with a trained self-play partner, as an adaptation curve's point plays them; and a network ego
 with scripted partners (blocks, Hanabi, Level-Based Foraging), whose rules still run one game
-at a time inside a batched series. Writes
+at a time inside a batched series; and blocks' convention posterior playing its plan. Writes
 `benchmarks/results/batched_play.json`.
 
     OMP_NUM_THREADS=1 python -m benchmarks.batched_play --hanabi-run /work/repro/h1/hanabi
@@ -28,6 +28,10 @@ import torch
 
 from benchmarks._common import median_seconds, write_result
 from rllib_conv import envs, partners
+from rllib_conv.adaptation.convention_posterior import ConventionPosterior, PosteriorPlayer
+from rllib_conv.envs.blocks.keys import blocks_observation
+from rllib_conv.partners.base import Partner
+from rllib_conv.partners.blocks import TEST_PERMUTATIONS, TRAIN_PERMUTATIONS, BlocksLeader, PermutationPartner
 from rllib_conv.partners.episodes import episode_stream, play_batched, play_episodes
 from rllib_conv.partners.trained import PolicyPartner, TrainedPolicyPartner
 from rllib_conv.training.evaluate import ego_head_partner, load_module
@@ -45,7 +49,7 @@ def mlp_seat(name: str, obs_dim: int, actions: int, hidden: int, seed: int) -> P
     return PolicyPartner(name, lambda obs, mask: net(obs).masked_fill(mask == 0, -1e9), greedy=False, seed=seed)
 
 
-Case = tuple[functools.partial, Callable[[], dict[str, PolicyPartner]]]  # an env factory, a factory of fresh seats
+Case = tuple[functools.partial, Callable[[], dict[str, Partner]]]  # an env factory, a factory of fresh seats
 
 
 def random_network_case(game: str, env_config: dict) -> Case:
@@ -76,6 +80,26 @@ def scripted_case(population: str) -> Case:
     def seats() -> dict[str, PolicyPartner]:
         member = pop.partners[0].build()
         return {a: mlp_seat(a, obs_dim, actions, hidden, 0) if a == ego else member for a in env.possible_agents}
+
+    return make, seats
+
+
+def posterior_case() -> Case:
+    """Blocks: the convention posterior's player with its planner (no evidence yet: the plan against the training
+    partners' mixture; the heads are scripted leaders, the adapting head a network) with a held-out permutation partner.
+
+    It learned within an episode until its plan was seen to fix every move (2026-12-08); now it plays batched."""
+    models = [PermutationPartner(f"t{i}", list(p)) for i, p in enumerate(TRAIN_PERMUTATIONS)]
+    leaders = [BlocksLeader(f"l{i}", list(p)) for i, p in enumerate(TRAIN_PERMUTATIONS)]
+    planner, make = envs.best_response("blocks", {}, "player_0"), functools.partial(envs.make_scored, "blocks")
+    env = make()
+    obs_dim, actions = env.observation_space("player_0")["observation"].shape[0], env.action_space("player_0").n
+
+    def seats() -> dict[str, Partner]:
+        adapting = mlp_seat("adapting", obs_dim, actions, envs.game("blocks").training.hidden, 0)
+        posterior = ConventionPosterior(models, blocks_observation)
+        player = PosteriorPlayer("ego", posterior, leaders, adapting, planner=planner)
+        return {"player_0": player, "player_1": PermutationPartner("new", list(TEST_PERMUTATIONS[0]))}
 
     return make, seats
 
@@ -137,6 +161,7 @@ def main() -> None:
     torch.set_num_threads(1)
     cases = {f"{game}, random networks": random_network_case(game, env_config) for game, env_config in GAMES.items()}
     cases |= {f"{population}: network ego, scripted partners": scripted_case(population) for population in SCRIPTED}
+    cases["blocks: convention posterior, planned"] = posterior_case()
     if args.hanabi_run:
         cases["hanabi, trained ego and partner"] = trained_hanabi_case(args.hanabi_run)
     rows = {name: measure(case, args.episodes, args.rounds) for name, case in cases.items()}

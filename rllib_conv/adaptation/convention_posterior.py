@@ -225,12 +225,13 @@ class PosteriorPlayer(Partner):
     episode (exact on one-step games).
 
     With a `planner` (a game's `envs.best_response`), the player instead plays the best
-    response to `posterior`'s prediction of the partner's moves wherever the plan has a
-    move (planned once, from the evidence before the episode).
+    response to `posterior`'s prediction of the partner's moves (planned once, from the
+    evidence before the episode). A plan has a legal move at every move of its seat (the
+    `Plan` contract), so nothing the player sees within an episode changes its play: it is
+    then a fixed policy, scored by a game's exact return and played many games at once.
     """
 
     kind = "convention_posterior"
-    learns_in_play = True
 
     def __init__(
         self,
@@ -252,6 +253,16 @@ class PosteriorPlayer(Partner):
         self._seed = seed
         self._rng = np.random.default_rng(seed)
         self.start_episode()
+
+    @property
+    def learns_in_play(self) -> bool:  # type: ignore[override]
+        """Without a plan the partner's moves in an episode steer its hypotheses; with one they change no move."""
+        return self.plan is None
+
+    @property
+    def batchable(self) -> bool:  # type: ignore[override]
+        """A planned player's move is a function of its observation alone."""
+        return self.plan is not None
 
     def seed(self, seed: int | None) -> None:
         self._rng = np.random.default_rng(self._seed if seed is None else seed)
@@ -293,6 +304,9 @@ class PosteriorPlayer(Partner):
 
     def action_probs(self, observations: np.ndarray, action_masks: np.ndarray) -> np.ndarray:
         observations, action_masks = np.asarray(observations), np.asarray(action_masks)
+        planned = [self._planned(obs, mask) for obs, mask in zip(observations, action_masks)]
+        if self.plan is not None and None not in planned:  # the plan's moves alone: no head needs to run
+            return np.eye(action_masks.shape[1])[planned]
         post = self.posterior.hypotheses()
         answers = np.stack([p.action_probs(observations, action_masks) for p in [*self.known, self.adapting]])  # [K + 1, B, A]
         out = np.tensordot(post[:-1], answers[:-1], axes=1)
@@ -300,7 +314,6 @@ class PosteriorPlayer(Partner):
         for b, obs in enumerate(observations):
             part = self.posterior.situation(key(obs) if key else None)
             out[b] += post[-1] * (answers[-1, b] if part is None else np.tensordot(part, answers[:, b], axes=1))
-            planned = self._planned(obs, action_masks[b])
-            if planned is not None:
-                out[b] = np.eye(out.shape[1])[planned]
+            if planned[b] is not None:
+                out[b] = np.eye(out.shape[1])[planned[b]]
         return out

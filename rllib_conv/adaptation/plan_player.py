@@ -32,9 +32,23 @@ class MoveOrFallback(Partner):
         action = self.move(np.asarray(observation))
         return action if action is not None and action_mask[action] else None
 
+    @property
+    def batchable(self) -> bool:  # type: ignore[override]
+        """Its own moves are a function of the observation (fixed while it plays): batchable where its fallback is."""
+        return self.fallback.batchable
+
     def act(self, observation: np.ndarray, action_mask: np.ndarray) -> int:
         action = self.chosen(observation, action_mask)
         return self.fallback.act(observation, action_mask) if action is None else action
+
+    def act_batch(self, observations: np.ndarray, action_masks: np.ndarray) -> np.ndarray:
+        observations, action_masks = np.asarray(observations), np.asarray(action_masks)
+        chosen = [self.chosen(obs, mask) for obs, mask in zip(observations, action_masks)]
+        out = np.array([-1 if a is None else a for a in chosen], dtype=np.int64)
+        rest = [b for b, a in enumerate(chosen) if a is None]
+        if rest:  # the fallback chooses for all its rows at once
+            out[rest] = self.fallback.act_batch(observations[rest], action_masks[rest])
+        return out
 
     def action_probs(self, observations: np.ndarray, action_masks: np.ndarray) -> np.ndarray:
         out = np.array(self.fallback.action_probs(observations, action_masks), dtype=np.float64)

@@ -24,10 +24,14 @@ from rllib_conv.envs.registry import game
 
 
 class Plan(Protocol):
-    """The ego's moves against one partner model."""
+    """The ego's moves against one partner model: a legal move at every move of the planning seat.
+
+    Players that play a plan (the convention posterior's, its controls') rely on it: their
+    moves are then fixed before an episode, so a game's exact return scores them.
+    """
 
     def act(self, observation: np.ndarray) -> int | None:
-        """The ego's best action in `observation`, or None where the plan has none."""
+        """The ego's best action in `observation`; None only where it is not the planning seat's move."""
 
 
 class BestResponse(Protocol):

@@ -15,7 +15,7 @@ from rllib_conv.envs.best_response import best_response_return
 from rllib_conv.envs.blocks.best_response import BlocksBestResponse
 from rllib_conv.envs.rllib_adapter import PettingZooMultiAgentEnv
 from rllib_conv.partners.bandit import BanditConventionPartner
-from rllib_conv.partners.base import SampledPartner
+from rllib_conv.partners.base import Partner, SampledPartner
 from rllib_conv.partners.blocks import TEST_PERMUTATIONS, TRAIN_PERMUTATIONS, PermutationPartner
 from rllib_conv.pipelines.adapt import run_adaptation
 from rllib_conv.pipelines.adapt_config import AdaptConfig
@@ -54,6 +54,28 @@ def test_the_lookup_plays_the_partners_seen_arm_and_the_marginal_elsewhere() -> 
     prizes = envs.make("bandit").prizes
     expected = np.mean([prizes[c, partner.arms[c]] * probs[c, partner.arms[c]] for c in range(4)])
     assert envs.game("bandit").exact_return({"player_0": player, "player_1": partner}, {}) == pytest.approx(expected)
+
+
+def test_a_control_plays_batched_where_its_fallback_can_and_chooses_as_it_does_one_at_a_time() -> None:
+    contexts, masks = np.eye(4, dtype=np.float32), np.ones((4, ARMS), dtype=np.int8)
+    lookup = ContextLookup(bandit_context)
+    lookup.observe(contexts[[0, 2]], np.full(2, -1), np.array([4, 2]))
+    player = lookup.player("ego", BanditConventionPartner("fallback", [7, 6, 5, 1]))  # greedy: a function of the context
+    assert player.batchable
+    assert player.act_batch(contexts, masks).tolist() == [player.act(c, m) for c, m in zip(contexts, masks)] == [4, 6, 2, 1]
+    assert not lookup.player("ego", OneAtATime("fallback")).batchable
+
+
+class OneAtATime(Partner):
+    """A partner that does not declare `batchable` (as a user's own may not)."""
+
+    kind = "test_one_at_a_time"
+
+    def act(self, observation: np.ndarray, action_mask: np.ndarray) -> int:
+        return 0
+
+    def params(self) -> dict:
+        return {}
 
 
 def test_the_lookup_answers_a_mixed_partner_with_its_most_played_arm_lowest_on_ties() -> None:

@@ -18,7 +18,7 @@ from rllib_conv.envs.blocks import BLUE, HIDDEN, RED, encode_observation
 from rllib_conv.envs.blocks.keys import blocks_observation
 from rllib_conv.partners.bandit import BanditConventionPartner
 from rllib_conv.partners.blocks import TEST_PERMUTATIONS, TRAIN_PERMUTATIONS, BlocksLeader, PermutationPartner, derangements
-from rllib_conv.partners.episodes import episode_stream
+from rllib_conv.partners.episodes import episode_stream, play_batched, play_episodes
 from rllib_conv.partners.hanabi import RandomLegalPartner
 from rllib_conv.partners.population import from_partners
 from rllib_conv.pipelines.adapt import run_adaptation
@@ -87,6 +87,25 @@ def test_the_blocks_player_plans_against_the_prediction() -> None:
     # Goal red on cell 0, blue on cell 1: signal blue's cell through the new permutation, for certain.
     start = encode_observation(np.array([RED, BLUE, 0, 0]), empty, 0, sees_goal=True)[None]
     assert player.action_probs(start, masks[:1]).tolist() == [np.eye(6)[new.perm.index(1)].tolist()]
+
+
+def test_a_planned_player_is_a_fixed_policy_scored_exactly_and_played_batched() -> None:
+    # Its moves are the plan's, fixed before the episode: the partner's moves within one change none, so the game's
+    # exact return scores it and many games play at once (the very episodes of one at a time: it is greedy).
+    models = [PermutationPartner(f"t{i}", list(p)) for i, p in enumerate(TRAIN_PERMUTATIONS)]
+    leaders = [BlocksLeader(f"l{i}", list(p)) for i, p in enumerate(TRAIN_PERMUTATIONS)]
+    planner, new = envs.best_response("blocks", {}, "player_0"), PermutationPartner("new", list(TEST_PERMUTATIONS[0]))
+    post = ConventionPosterior(models, blocks_observation)
+    player = PosteriorPlayer("ego", post, leaders, RandomLegalPartner(seed=0), planner=planner)
+    assert not player.learns_in_play and player.batchable
+    seats = {"player_0": player, "player_1": new}
+    batched = play_batched(lambda: envs.make_scored("blocks"), seats, 240, seed=3)
+    assert batched.tolist() == play_episodes(envs.make_scored("blocks"), seats, 240, seed=3).tolist()
+    exact = envs.game("blocks").exact_return(seats, {})
+    assert 0 < exact < 20 and exact == pytest.approx(batched.mean(), abs=4 * batched.std() / np.sqrt(240))
+    unplanned = PosteriorPlayer("ego", post, leaders, RandomLegalPartner(seed=0))
+    assert unplanned.learns_in_play and not unplanned.batchable
+    assert envs.game("blocks").exact_return({"player_0": unplanned, "player_1": new}, {}) is None
 
 
 def test_rule_moves_tell_conventions_apart_from_nothing() -> None:
