@@ -240,8 +240,11 @@ def test_a_partner_following_no_known_convention_falls_back_to_fine_tuning(narro
     trial, _ = narrow_ego
     common = {"runs": [trial], "split": "test", "steps": 480, "seed": 5}
     plain = run_adaptation(checked({"name": "fresh", **common}, AdaptConfig), out=tmp_path, storage=tmp_path / "runs")
+    # Scored as the blocks plan scores it: by the exact return alone (its plan fixes its moves before each episode).
     post = run_adaptation(
-        checked({"name": "posterior", "head_init": "posterior", **common}, AdaptConfig), out=tmp_path, storage=tmp_path / "runs"
+        checked({"name": "posterior", "head_init": "posterior", **common, "episodes": 0}, AdaptConfig),
+        out=tmp_path,
+        storage=tmp_path / "runs",
     )
     assert post["steps"].tolist() == plain["steps"].tolist()
     assert "picked" not in post or post["picked"].isna().all()  # no known convention is handed over
@@ -257,12 +260,16 @@ def test_blocks_adaptation_plays_the_best_response_to_a_recombined_convention_af
     # steps the adapting ego puts red on every cell at move 1, the partner answers, and the plan against the
     # prediction scores 20 on every goal; the plain method, from the same ego, is far from it.
     common = {"runs": [blocks_ego], "split": "test", "partners": ["perm-1032"], "steps": 1280, "episodes": 40}
+    # Scored as the blocks plan scores it: by the exact return alone (its plan fixes its moves before each episode).
     post = run_adaptation(
-        checked({"name": "posterior", "head_init": "posterior", **common}, AdaptConfig), out=tmp_path, storage=tmp_path / "runs"
+        checked({"name": "posterior", "head_init": "posterior", **common, "episodes": 0}, AdaptConfig),
+        out=tmp_path,
+        storage=tmp_path / "runs",
     )
     plain = run_adaptation(checked({"name": "fresh", **common}, AdaptConfig), out=tmp_path, storage=tmp_path / "runs")
     # Before, after one and two updates of exactly the protocol's 640 env steps (each replica's own moves, not
     # RLlib's per-module counts, which count the partner's final observation too: 744 per update on blocks).
     assert post["steps"].tolist() == plain["steps"].tolist() == [0, 640, 1280]
-    assert (post["mean_return"].iloc[1:] == 20.0).all()
+    assert (post["exact_return"].iloc[1:] == 20.0).all() and post["exact_return"].notna().all()
+    assert post["mean_return"].isna().all()  # no sampled episodes
     assert plain["mean_return"].max() < 17.0
