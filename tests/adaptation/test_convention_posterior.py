@@ -13,6 +13,7 @@ from rllib_conv import envs
 from rllib_conv.adaptation.convention_posterior import ConventionPosterior, PosteriorPlayer
 from rllib_conv.common.config_files import checked
 from rllib_conv.common.run_folders import trial_folders
+from rllib_conv.envs.best_response import BestResponse
 from rllib_conv.envs.bandit.keys import bandit_context
 from rllib_conv.envs.blocks import BLUE, HIDDEN, RED, encode_observation
 from rllib_conv.envs.blocks.keys import blocks_observation
@@ -63,14 +64,20 @@ def test_the_prediction_of_the_next_move_by_hand() -> None:
     assert post.predictive(ONE_HOT, ALL_ARMS).sum(axis=1) == pytest.approx(np.ones(4))
 
 
+def blocks_posterior() -> tuple[ConventionPosterior, list[BlocksLeader], BestResponse, PermutationPartner]:
+    """A posterior over blocks' training permutations (no evidence yet), their leaders as its heads, P1's planner and a
+    held-out permutation partner."""
+    models = [PermutationPartner(f"t{i}", list(p)) for i, p in enumerate(TRAIN_PERMUTATIONS)]
+    leaders = [BlocksLeader(f"l{i}", list(p)) for i, p in enumerate(TRAIN_PERMUTATIONS)]
+    planner, new = envs.best_response("blocks", {}, "player_0"), PermutationPartner("new", list(TEST_PERMUTATIONS[0]))
+    return ConventionPosterior(models, blocks_observation), leaders, planner, new
+
+
 def test_the_blocks_player_plans_against_the_prediction() -> None:
     # A test permutation recombines the training ones cell by cell: once the partner has answered red on
     # every cell, the ego's plan scores 20 on every goal; before any evidence, its plan is the best
     # response to the training partners' mixture, which no head is.
-    models = [PermutationPartner(f"t{i}", list(p)) for i, p in enumerate(TRAIN_PERMUTATIONS)]
-    leaders = [BlocksLeader(f"l{i}", list(p)) for i, p in enumerate(TRAIN_PERMUTATIONS)]
-    planner, new = envs.best_response("blocks", {}, "player_0"), PermutationPartner("new", list(TEST_PERMUTATIONS[0]))
-    post = ConventionPosterior(models, blocks_observation)
+    post, leaders, planner, new = blocks_posterior()
     prior = PosteriorPlayer("ego", post, leaders, RandomLegalPartner(seed=0), planner=planner)
     assert prior.plan.value.min() > 12.5  # the exact 13.33 of the mixture, less the smoothing's stray moves
     empty, move1 = np.zeros(4, dtype=np.int64), []
@@ -92,10 +99,7 @@ def test_the_blocks_player_plans_against_the_prediction() -> None:
 def test_a_planned_player_is_a_fixed_policy_scored_exactly_and_played_batched() -> None:
     # Its moves are the plan's, fixed before the episode: the partner's moves within one change none, so the game's
     # exact return scores it and many games play at once (the very episodes of one at a time: it is greedy).
-    models = [PermutationPartner(f"t{i}", list(p)) for i, p in enumerate(TRAIN_PERMUTATIONS)]
-    leaders = [BlocksLeader(f"l{i}", list(p)) for i, p in enumerate(TRAIN_PERMUTATIONS)]
-    planner, new = envs.best_response("blocks", {}, "player_0"), PermutationPartner("new", list(TEST_PERMUTATIONS[0]))
-    post = ConventionPosterior(models, blocks_observation)
+    post, leaders, planner, new = blocks_posterior()
     player = PosteriorPlayer("ego", post, leaders, RandomLegalPartner(seed=0), planner=planner)
     assert not player.learns_in_play and player.batchable
     seats = {"player_0": player, "player_1": new}
