@@ -13,8 +13,8 @@ from rllib_conv import envs
 from rllib_conv.adaptation.convention_posterior import ConventionPosterior, PosteriorPlayer
 from rllib_conv.common.config_files import checked
 from rllib_conv.common.run_folders import trial_folders
-from rllib_conv.envs.best_response import BestResponse
 from rllib_conv.envs.bandit.keys import bandit_context
+from rllib_conv.envs.best_response import BestResponse
 from rllib_conv.envs.blocks import BLUE, HIDDEN, RED, encode_observation
 from rllib_conv.envs.blocks.keys import blocks_observation
 from rllib_conv.partners.bandit import BanditConventionPartner
