@@ -15,6 +15,8 @@ import numpy as np
 import pytest
 
 from rllib_conv import envs
+from rllib_conv.envs.blocks import BLUE, GOALS, NUM_ACTIONS, NUM_MOVES, RED, encode_observation
+from rllib_conv.envs.blocks.best_response import all_grids
 from rllib_conv.partners.bandit import BanditConventionPartner, BanditMixedPartner
 from rllib_conv.partners.base import Partner
 from rllib_conv.partners.blocks import BlocksLeader, NoisyPermutationPartner, PermutationPartner
@@ -86,3 +88,24 @@ def test_every_permutation_partner_is_bounded_by_20_and_unknowns_are_none() -> N
     assert envs.best_response_return("blocks", {}, "player_1", partner) is None  # P2 would need to infer the goal
     assert envs.best_response_return("blocks", {}, "player_0", Unsaid("u")) is None
     assert envs.best_response_return("hanabi", {}, "player_0", partner) is None  # no exact bound declared
+
+
+@pytest.mark.parametrize("new_task", [False, True])
+def test_a_blocks_plan_has_a_legal_move_at_every_move_of_p1_and_none_elsewhere(new_task: bool) -> None:
+    # The `Plan` contract players rely on to be fixed policies within an episode (the planned convention posterior).
+    planner = envs.best_response("blocks", {"new_task": new_task}, "player_0")
+    situations, masks = planner.situations()
+    plan = planner.plan(np.full(masks.shape, 1.0 / masks.shape[1]))  # against a uniformly random P2
+    goals = []
+    for red, blue in GOALS:
+        goal = np.zeros(4, dtype=np.int64)
+        goal[red], goal[blue] = RED, BLUE
+        goals.append(goal)
+    p1 = [
+        encode_observation(goal, grid, move, sees_goal=True)
+        for goal in goals
+        for grid in all_grids()
+        for move in range(0, NUM_MOVES, 2)
+    ]
+    assert len(p1) == 12 * 21 * 3 and all(plan.act(obs) in range(NUM_ACTIONS) for obs in p1)
+    assert all(plan.act(obs) is None for obs in situations)  # P2's observations: not the planning seat's move
