@@ -244,11 +244,8 @@ def test_a_partner_following_no_known_convention_falls_back_to_fine_tuning(narro
     trial, _ = narrow_ego
     common = {"runs": [trial], "split": "test", "steps": 480, "seed": 5}
     plain = run_adaptation(checked({"name": "fresh", **common}, AdaptConfig), out=tmp_path, storage=tmp_path / "runs")
-    # Scored as the blocks plan scores it: by the exact return alone (its plan fixes its moves before each episode).
     post = run_adaptation(
-        checked({"name": "posterior", "head_init": "posterior", **common, "episodes": 0}, AdaptConfig),
-        out=tmp_path,
-        storage=tmp_path / "runs",
+        checked({"name": "posterior", "head_init": "posterior", **common}, AdaptConfig), out=tmp_path, storage=tmp_path / "runs"
     )
     assert post["steps"].tolist() == plain["steps"].tolist()
     assert "picked" not in post or post["picked"].isna().all()  # no known convention is handed over
